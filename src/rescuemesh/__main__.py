@@ -1,0 +1,3 @@
+from rescuemesh.cli import main
+
+raise SystemExit(main())

@@ -1,0 +1,9 @@
+"""Maps: the office wall file and ROS map_server maps, as walls for physics and a grid for navigation.
+
+Owns: MapModel, OccupancyGrid, load_map. Pure numpy/PyYAML/Pillow: no MuJoCo, no navigation.
+"""
+
+from rescuemesh.maps.grid import OccupancyGrid
+from rescuemesh.maps.model import MapError, MapModel, Rect, load_map, office_map_path
+
+__all__ = ["MapError", "MapModel", "OccupancyGrid", "Rect", "load_map", "office_map_path"]

@@ -1,0 +1,81 @@
+"""MapModel: what every layer may know of a map, and `load_map` for both supported file kinds.
+
+Owns: the map data model and the two loaders (rescuemesh wall YAML, ROS map_server PGM+YAML).
+Must not know: physics, navigation, scenarios.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+from rescuemesh.geometry import Pose2D
+from rescuemesh.maps.grid import OccupancyGrid
+
+
+class MapError(ValueError):
+    """A map file is missing, unreadable or malformed. The message names the file and the problem."""
+
+
+@dataclass(frozen=True, slots=True)
+class Rect:
+    """An axis-aligned rectangle in the map frame, in m."""
+
+    x_min: float
+    y_min: float
+    x_max: float
+    y_max: float
+
+    def contains(self, x: float, y: float) -> bool:
+        return self.x_min <= x <= self.x_max and self.y_min <= y <= self.y_max
+
+    @property
+    def center(self) -> tuple[float, float]:
+        return (0.5 * (self.x_min + self.x_max), 0.5 * (self.y_min + self.y_max))
+
+
+@dataclass(frozen=True)
+class MapModel:
+    """A map as physics, navigation, scenarios and plots see it.
+
+    - `walls`: boxes that become static geoms in the physics world (height `wall_height` m).
+    - `grid`: the occupancy grid navigation plans on (rasterised walls, or the map_server image).
+    - `bounds`: the rectangle the map covers.
+    - `regions`: named areas ("hall", "room_east", ...) for success criteria and plot labels.
+    - `doorways`: openings to mark on plots.
+    - `starts`: default robot start poses by robot name; `goals`: named default goals.
+    """
+
+    name: str
+    source: Path | None
+    bounds: Rect
+    walls: tuple[Rect, ...]
+    grid: OccupancyGrid
+    wall_height: float = 0.5
+    regions: dict[str, Rect] = field(default_factory=dict)
+    doorways: tuple[Rect, ...] = ()
+    starts: dict[str, Pose2D] = field(default_factory=dict)
+    goals: dict[str, Pose2D] = field(default_factory=dict)
+
+    def region_of(self, x: float, y: float) -> str | None:
+        """Name of the first region that contains (x, y), or None."""
+        for name, rect in self.regions.items():
+            if rect.contains(x, y):
+                return name
+        return None
+
+
+def office_map_path() -> Path:
+    """Path of the packaged office map (`rescuemesh/data/office.yaml`)."""
+    return Path(str(resources.files("rescuemesh") / "data" / "office.yaml"))
+
+
+def load_map(path: str | Path, grid_resolution: float = 0.05) -> MapModel:
+    """Load a map file: a rescuemesh wall map (YAML with `walls:`) or a ROS map_server map (YAML with `image:`).
+
+    Raises MapError with a one-line message for a missing, unreadable or malformed file.
+    """
+    from rescuemesh.maps.loaders import load_map_file
+
+    return load_map_file(Path(path), grid_resolution)
