@@ -1,0 +1,185 @@
+"""World: a MuJoCo office with TurtleBots, stepped in whole physics steps on simulated time.
+
+Owns: the MjModel/MjData, the step loop, the lidar schedule, odometry commits and collision
+episodes. Must not know: brains, navigation, the radio or the wall clock (the runtime calls step).
+
+Theory of operation: time is an integer count of physics steps (time = steps * physics_dt), so
+schedules never drift. Physics runs one mj_step at a time so that the chassis contact sensors are
+read after every step; everything else happens at fixed step counts, independent of how the caller
+slices `step()`: odometry commits every ODOMETRY_PERIOD_S, lidar sweeps every 1 / rate_hz (the
+first at time 0). Same inputs and the same call sequence give bit-identical trajectories.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+import mujoco
+import numpy as np
+
+from rescuemesh.geometry import Pose2D
+from rescuemesh.maps.model import MapModel
+from rescuemesh.sim import mjcf
+from rescuemesh.sim.body import SimBody
+from rescuemesh.sim.lidar import Lidar, LidarConfig
+
+MAX_PHYSICS_DT = 0.005  # s; larger steps make the wheel contacts and the collision counting coarse
+ODOMETRY_PERIOD_S = 0.05  # s between odometry commits (a Kobuki reports odometry at 50 Hz)
+# A robot's chassis must be free of contact this long (s) before a new touch counts as a new
+# collision episode; grinding along a wall with brief separations stays one episode.
+COLLISION_GAP_S = 0.25
+
+
+class World:
+    """The simulated office: one MuJoCo model with the map's walls and one robot per start pose.
+
+    - `map_model`: walls (extruded to `map_model.wall_height` m) and the grid used to check starts.
+    - `starts`: robot name -> start pose in the map frame; names become MuJoCo element prefixes.
+    - `physics_dt`: physics step in s, at most 0.005.
+    - `lidar`: the lidar of every robot.
+    - `seed`: an int or a numpy Generator for the lidar noise (the only randomness; the physics is
+      deterministic).
+
+    Attributes: `bodies` (name -> SimBody, in the order of `starts`), `model` and `data` (MuJoCo,
+    for viewers and diagnostics; do not step them directly), `xml` (the MJCF text).
+    """
+
+    def __init__(
+        self,
+        map_model: MapModel,
+        starts: Mapping[str, Pose2D],
+        *,
+        physics_dt: float = 0.005,
+        lidar: LidarConfig = LidarConfig(),
+        seed: int | np.random.Generator = 0,
+    ) -> None:
+        if not (math.isfinite(physics_dt) and 0.0 < physics_dt <= MAX_PHYSICS_DT):
+            raise ValueError(f"physics_dt must be in (0, {MAX_PHYSICS_DT}] s, got {physics_dt}")
+        if not starts:
+            raise ValueError("a World needs at least one robot start pose")
+        for name, pose in starts.items():
+            if not isinstance(name, str) or not name or any(c in name for c in "<>&\"'"):
+                raise ValueError(f"robot name {name!r} must be a non-empty string without XML special characters")
+            if map_model.grid.is_occupied(pose.x, pose.y):
+                raise ValueError(f"start of {name} at ({pose.x:g}, {pose.y:g}) m is inside an obstacle or off the map")
+        self.map_model = map_model
+        self.physics_dt = float(physics_dt)
+        self.lidar_config = lidar
+        self.xml = mjcf.world_xml(map_model, starts, self.physics_dt)
+        self.model = mujoco.MjModel.from_xml_string(self.xml)
+        self.data = mujoco.MjData(self.model)
+        rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+
+        names = list(starts)
+        self.bodies: dict[str, SimBody] = {n: SimBody(n, self.model, self.data, starts[n]) for n in names}
+        child_rngs = rng.spawn(len(names))
+        self._lidars = {
+            n: Lidar(self.model, self.data, self.bodies[n].body_id, lidar, child_rngs[i]) for i, n in enumerate(names)
+        }
+        self._index = {n: i for i, n in enumerate(names)}
+        adr = [int(self.model.sensor_adr[self.model.sensor(mjcf.bump_sensor_name(n)).id]) for n in names]
+        if adr != list(range(adr[0], adr[0] + len(adr))):
+            raise RuntimeError("bump sensors are not contiguous in sensordata")  # guards the view below
+        self._bump = self.data.sensordata[adr[0] : adr[0] + len(names)]  # view: contacts of each chassis
+
+        self._steps = 0
+        self._scan_every = max(1, round(1.0 / (lidar.rate_hz * self.physics_dt)))
+        self._odom_every = max(1, round(ODOMETRY_PERIOD_S / self.physics_dt))
+        self._gap_steps = max(1, round(COLLISION_GAP_S / self.physics_dt))
+        self._collisions = [0] * len(names)
+        self._in_episode = [False] * len(names)
+        self._last_touch = [0] * len(names)
+        self._any_episode = False
+
+        mujoco.mj_forward(self.model, self.data)
+        self._sweep()
+
+    # ------------------------------------------------------------ public
+
+    @property
+    def time(self) -> float:
+        """Simulated time in s since the world was built."""
+        return self._steps * self.physics_dt
+
+    @property
+    def steps(self) -> int:
+        """Physics steps taken since the world was built."""
+        return self._steps
+
+    @property
+    def scan_period(self) -> float:
+        """Time in s between lidar sweeps: 1 / rate_hz rounded to whole physics steps."""
+        return self._scan_every * self.physics_dt
+
+    @property
+    def collisions(self) -> dict[str, int]:
+        """Robot name -> number of collision episodes so far (chassis against a wall or another chassis).
+
+        An episode starts when a chassis touches after at least COLLISION_GAP_S s free of contact.
+        """
+        return {n: self._collisions[i] for n, i in self._index.items()}
+
+    def contacts_now(self, name: str) -> bool:
+        """True while `name`'s chassis touches a wall or another robot's chassis (after the last step)."""
+        return bool(self._bump[self._index[name]] > 0.0)
+
+    def step(self, duration_s: float) -> None:
+        """Advance simulated time by `duration_s` s, rounded to a whole number of physics steps.
+
+        A caller with a fixed control period that is not a whole number of physics steps should
+        use `step_to` so the rounding does not accumulate.
+        """
+        if not (math.isfinite(duration_s) and duration_s >= 0.0):
+            raise ValueError(f"step duration must be a finite number of s >= 0, got {duration_s}")
+        self._advance(round(duration_s / self.physics_dt))
+
+    def step_to(self, time_s: float) -> None:
+        """Advance to the physics step nearest `time_s` s (no-op when already there or past it)."""
+        if not math.isfinite(time_s):
+            raise ValueError(f"target time must be finite, got {time_s}")
+        self._advance(round(time_s / self.physics_dt) - self._steps)
+
+    # ------------------------------------------------------------ the loop
+
+    def _advance(self, n: int) -> None:
+        target = self._steps + max(0, n)
+        while self._steps < target:
+            next_odom = (self._steps // self._odom_every + 1) * self._odom_every
+            next_scan = (self._steps // self._scan_every + 1) * self._scan_every
+            stop = min(target, next_odom, next_scan)
+            self._physics(stop - self._steps)
+            if self._steps % self._odom_every == 0:
+                for body in self.bodies.values():
+                    body.commit_odometry()
+            if self._steps % self._scan_every == 0:
+                self._sweep()
+
+    def _physics(self, n: int) -> None:
+        """`n` physics steps, reading the chassis contact sensors after each."""
+        m, d, bump = self.model, self.data, self._bump
+        for _ in range(n):
+            mujoco.mj_step(m, d)
+            self._steps += 1
+            if self._any_episode or bump.any():
+                self._update_episodes()
+
+    def _update_episodes(self) -> None:
+        any_open = False
+        for i, touching in enumerate(self._bump > 0.0):
+            if touching:
+                if not self._in_episode[i]:
+                    self._in_episode[i] = True
+                    self._collisions[i] += 1
+                self._last_touch[i] = self._steps
+            elif self._in_episode[i] and self._steps - self._last_touch[i] >= self._gap_steps:
+                self._in_episode[i] = False
+            any_open = any_open or self._in_episode[i]
+        self._any_episode = any_open
+
+    def _sweep(self) -> None:
+        """One lidar sweep per robot at the current time (kinematics refreshed for current qpos)."""
+        mujoco.mj_kinematics(self.model, self.data)
+        now = self.time
+        for name, body in self.bodies.items():
+            body.set_scan(self._lidars[name].sweep(now, body.pose()))
