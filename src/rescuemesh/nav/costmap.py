@@ -1,0 +1,193 @@
+"""Costmap: an occupancy grid turned into traversal costs for a round robot, plus scan obstacles.
+
+Owns: static inflation (scipy EDT, as Nav2's inflation layer) and the per-scan obstacle layer.
+Must not know: where the grid or the scan points came from (no sim, no robot, no protocol), nor planning.
+
+Theory of operation: every cell has a *clearance*, the distance in m from its centre to the nearest
+obstacle surface (EDT distance to the nearest occupied cell centre minus half a cell). A cell whose
+clearance is below `inscribed_radius` is LETHAL (cost 1.0): the robot's centre there would touch.
+Beyond, the cost decays as Nav2's `exp(-cost_scaling * (clearance - inscribed_radius))` scaled to
+[0, MAX_NON_LETHAL], and is 0 beyond `inflation_radius`. Scan obstacles are stamped with a
+precomputed disc kernel of the same profile; only cells near the points are touched.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import ndimage
+
+from rescuemesh.maps.grid import OccupancyGrid
+
+LETHAL = 1.0
+"""Cost of a cell the robot's centre may not enter."""
+
+MAX_NON_LETHAL = 0.99
+"""Cost just outside the inscribed radius (Nav2's 252/254)."""
+
+
+def inflation_cost(
+    clearance: np.ndarray, inscribed_radius: float, inflation_radius: float, cost_scaling: float
+) -> np.ndarray:
+    """Cost in [0, 1] for clearances in m: LETHAL below `inscribed_radius`, 0 beyond `inflation_radius`.
+
+    `cost_scaling` is in 1/m (Nav2 inflation layer `cost_scaling_factor`).
+    """
+    c = np.asarray(clearance, dtype=float)
+    decay = MAX_NON_LETHAL * np.exp(-cost_scaling * np.maximum(c - inscribed_radius, 0.0))
+    out = np.where(c > inflation_radius, 0.0, decay)
+    return np.where(c < inscribed_radius, LETHAL, out).astype(np.float32)
+
+
+class Costmap:
+    """Traversal costs over an OccupancyGrid, in the grid's cells and frame.
+
+    - `cost[row, col]`: float32 in [0, 1]; 1.0 (LETHAL) where the robot may not be; outside the grid is lethal.
+    - `lethal[row, col]`: bool, `cost >= LETHAL`.
+    - `static_clearance[row, col]`: m from the cell centre to the nearest map obstacle surface.
+    - `obstacle_points`: (N, 2) map-frame points of the obstacle layer (m), `obstacle_stamp` their time (s).
+
+    A Costmap is never modified after construction: `with_obstacles` returns a new one that shares
+    the static arrays.
+    """
+
+    def __init__(
+        self,
+        grid: OccupancyGrid,
+        *,
+        inscribed_radius: float = 0.18,
+        inflation_radius: float = 0.55,
+        cost_scaling: float = 5.0,
+    ) -> None:
+        """Inflate `grid`. Radii in m (robot radius 0.177 m -> 0.18 m), `cost_scaling` in 1/m."""
+        if inflation_radius < inscribed_radius:
+            raise ValueError("inflation_radius must be >= inscribed_radius")
+        self.grid = grid
+        self.resolution = float(grid.resolution)
+        self.inscribed_radius = float(inscribed_radius)
+        self.inflation_radius = float(inflation_radius)
+        self.cost_scaling = float(cost_scaling)
+        occupied = np.asarray(grid.occupied, dtype=bool)
+        if occupied.any():
+            edt = ndimage.distance_transform_edt(~occupied)
+            clearance = edt * self.resolution - 0.5 * self.resolution
+        else:
+            clearance = np.full(occupied.shape, np.inf)
+        self.static_clearance = clearance.astype(np.float32)
+        self.static_cost = inflation_cost(clearance, self.inscribed_radius, self.inflation_radius, self.cost_scaling)
+        self.cost = self.static_cost
+        self.lethal = self._static_lethal = self.cost >= LETHAL
+        self.obstacle_points = np.zeros((0, 2))
+        self.obstacle_stamp: float | None = None
+        self._kernel = self._make_kernel()
+
+    # -- geometry -------------------------------------------------------------------------------
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(rows, cols)."""
+        return self.cost.shape
+
+    def world_to_cell(self, x: float, y: float) -> tuple[int, int]:
+        """(row, col) of the cell holding map point (x, y) m; may lie outside the grid."""
+        return self.grid.world_to_cell(x, y)
+
+    def cell_to_world(self, row: int, col: int) -> tuple[float, float]:
+        """Map-frame (x, y) in m of the centre of cell (row, col)."""
+        return self.grid.cell_to_world(row, col)
+
+    def cells_of(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(rows, cols, inside) int arrays for an (N, 2) array of map points in m."""
+        xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+        rows = np.floor((xy[:, 1] - self.grid.origin_y) / self.resolution).astype(np.int64)
+        cols = np.floor((xy[:, 0] - self.grid.origin_x) / self.resolution).astype(np.int64)
+        h, w = self.shape
+        inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+        return rows, cols, inside
+
+    # -- queries --------------------------------------------------------------------------------
+
+    def cost_at(self, x: float, y: float) -> float:
+        """Cost in [0, 1] at map point (x, y) m; LETHAL (1.0) outside the grid."""
+        row, col = self.world_to_cell(x, y)
+        h, w = self.shape
+        if not (0 <= row < h and 0 <= col < w):
+            return LETHAL
+        return float(self.cost[row, col])
+
+    def is_free(self, x: float, y: float) -> bool:
+        """True when the robot's centre may be at (x, y) m: inside the grid and not lethal."""
+        return self.cost_at(x, y) < LETHAL
+
+    def costs_at(self, xy: np.ndarray) -> np.ndarray:
+        """Costs in [0, 1] at an (N, 2) array of map points in m; LETHAL outside the grid."""
+        rows, cols, inside = self.cells_of(xy)
+        out = np.full(len(rows), LETHAL, dtype=np.float32)
+        out[inside] = self.cost[rows[inside], cols[inside]]
+        return out
+
+    def clearance_at(self, x: float, y: float) -> float:
+        """Distance in m from (x, y) to the nearest static map obstacle (0 outside the grid)."""
+        row, col = self.world_to_cell(x, y)
+        h, w = self.shape
+        if not (0 <= row < h and 0 <= col < w):
+            return 0.0
+        return float(self.static_clearance[row, col])
+
+    # -- obstacle layer -------------------------------------------------------------------------
+
+    def static(self) -> "Costmap":
+        """This costmap without its obstacle layer."""
+        return self.with_obstacles(np.zeros((0, 2)), self.obstacle_stamp)
+
+    def with_obstacles(
+        self,
+        points: np.ndarray,
+        now: float | None,
+        *,
+        clear_center: tuple[float, float] | None = None,
+        clear_radius: float = 0.0,
+    ) -> "Costmap":
+        """A new costmap: the static layer plus `points` ((N, 2) map-frame m, e.g. a scan) inflated.
+
+        The obstacle layer is replaced, not accumulated (cleared and refreshed per scan). Points
+        within `clear_radius` m of `clear_center` are ignored (the follower's leader near its goal).
+        Points on or next to a static obstacle (clearance < 1.5 cells) are already in the static
+        layer and skipped. `now` (s) is kept as `obstacle_stamp`.
+        """
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        if clear_center is not None and clear_radius > 0.0 and len(pts):
+            far = np.hypot(pts[:, 0] - clear_center[0], pts[:, 1] - clear_center[1]) > clear_radius
+            pts = pts[far]
+        out = object.__new__(Costmap)
+        out.__dict__.update(self.__dict__)
+        out.obstacle_stamp = now
+        rows, cols, inside = self.cells_of(pts)
+        keep = inside.copy()
+        keep[inside] = self.static_clearance[rows[inside], cols[inside]] >= 1.5 * self.resolution
+        out.obstacle_points = pts[keep]
+        if not keep.any():
+            out.cost = self.static_cost
+            out.lethal = self._static_lethal
+            return out
+        h, w = self.shape
+        flat = np.unique(rows[keep] * w + cols[keep])
+        dr, dc, kval = self._kernel
+        rr = (flat // w)[:, None] + dr[None, :]
+        cc = (flat % w)[:, None] + dc[None, :]
+        ok = (rr >= 0) & (rr < h) & (cc >= 0) & (cc < w)
+        cost = self.static_cost.copy()
+        np.maximum.at(cost.reshape(-1), (rr * w + cc)[ok], np.broadcast_to(kval, rr.shape)[ok])
+        out.cost = cost
+        out.lethal = cost >= LETHAL
+        return out
+
+    def _make_kernel(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Cell offsets (drow, dcol) and costs of one obstacle cell, inflated: the stamp for scan points."""
+        n = int(math.ceil(self.inflation_radius / self.resolution)) + 1
+        dr, dc = np.mgrid[-n : n + 1, -n : n + 1]
+        clearance = np.hypot(dr, dc) * self.resolution - 0.5 * self.resolution
+        kval = inflation_cost(clearance, self.inscribed_radius, self.inflation_radius, self.cost_scaling)
+        nz = kval > 0.0
+        return dr[nz].astype(np.int64), dc[nz].astype(np.int64), kval[nz]

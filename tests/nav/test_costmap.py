@@ -1,0 +1,84 @@
+import math
+
+import numpy as np
+import pytest
+
+from rescuemesh.maps.grid import OccupancyGrid
+from rescuemesh.nav import LETHAL, Costmap
+
+
+def test_lethal_within_inscribed_radius_of_a_wall(room_costmap):
+    # the west border wall's surface is at x = 0.1 m
+    assert not room_costmap.is_free(0.1 + 0.1, 1.0)
+    assert room_costmap.cost_at(0.1 + 0.1, 1.0) == LETHAL
+    assert room_costmap.is_free(0.1 + 0.2, 1.0)
+
+
+def test_cost_decays_with_distance_and_vanishes_beyond_inflation(room_costmap):
+    xs = 0.1 + np.array([0.2, 0.3, 0.4, 0.5])
+    costs = [room_costmap.cost_at(x, 1.0) for x in xs]
+    assert all(0.0 < c < LETHAL for c in costs)
+    assert costs == sorted(costs, reverse=True)
+    assert room_costmap.cost_at(0.1 + 0.8, 1.0) == 0.0
+
+
+def test_doorway_middle_is_cheaper_than_near_the_jamb(room_costmap):
+    assert room_costmap.cost_at(3.05, 2.0) < room_costmap.cost_at(3.05, 1.75)
+
+
+@pytest.mark.parametrize("xy", [(-1.0, 1.0), (1.0, -0.01), (6.5, 2.0), (1.0, 4.5)])
+def test_outside_the_grid_is_lethal(room_costmap, xy):
+    assert room_costmap.cost_at(*xy) == LETHAL
+    assert not room_costmap.is_free(*xy)
+
+
+def test_obstacle_points_are_inflated_without_touching_the_static_layer(room_costmap):
+    cm = room_costmap.with_obstacles(np.array([[1.5, 2.0]]), 3.0)
+    assert cm.obstacle_stamp == 3.0
+    assert not cm.is_free(1.5 + 0.1, 2.0)
+    assert 0.0 < cm.cost_at(1.5 + 0.3, 2.0) < LETHAL
+    assert cm.cost_at(1.5 + 0.8, 2.0) == 0.0
+    assert room_costmap.is_free(1.5 + 0.1, 2.0)  # the original is unchanged
+
+
+def test_obstacle_layer_is_replaced_by_each_scan(room_costmap):
+    first = room_costmap.with_obstacles(np.array([[1.5, 2.0]]), 1.0)
+    second = first.with_obstacles(np.array([[4.5, 2.0]]), 1.1)
+    assert second.is_free(1.5, 2.0)
+    assert not second.is_free(4.5, 2.0)
+
+
+def test_points_within_clear_radius_of_the_centre_are_ignored(room_costmap):
+    pts = np.array([[1.5, 2.0], [4.5, 2.0]])
+    cm = room_costmap.with_obstacles(pts, 0.0, clear_center=(1.4, 2.0), clear_radius=0.5)
+    assert cm.is_free(1.5, 2.0)
+    assert not cm.is_free(4.5, 2.0)
+
+
+def test_points_on_static_walls_are_not_stamped_again(room_costmap):
+    cm = room_costmap.with_obstacles(np.array([[0.05, 1.0], [3.05, 0.5]]), 0.0)
+    assert len(cm.obstacle_points) == 0
+    assert cm.cost is room_costmap.static_cost
+
+
+def test_stamped_point_matches_static_inflation_of_one_cell():
+    occ = np.zeros((41, 41), dtype=bool)
+    occ[20, 20] = True
+    static = Costmap(OccupancyGrid(occ, 0.05, 0.0, 0.0))
+    empty = Costmap(OccupancyGrid(np.zeros_like(occ), 0.05, 0.0, 0.0))
+    stamped = empty.with_obstacles(np.array([empty.cell_to_world(20, 20)]), 0.0)
+    np.testing.assert_allclose(stamped.cost, static.cost, atol=1e-6)
+
+
+def test_many_points_stay_cheap(room_costmap):
+    # a 240-degree scan's worth of points: the stamp must not redo the EDT (behaviour check, not timing)
+    rng = np.random.default_rng(1)
+    pts = rng.uniform([0.5, 0.5], [5.5, 3.5], size=(500, 2))
+    cm = room_costmap.with_obstacles(pts, 0.0)
+    assert all(not cm.is_free(x, y) for x, y in pts[:20])
+
+
+def test_inflation_radius_below_inscribed_is_rejected():
+    with pytest.raises(ValueError):
+        Costmap(OccupancyGrid(np.zeros((4, 4), bool), 0.05, 0.0, 0.0), inscribed_radius=0.3, inflation_radius=0.2)
+    assert math.isinf(Costmap(OccupancyGrid(np.zeros((4, 4), bool), 0.05, 0.0, 0.0)).clearance_at(0.1, 0.1))

@@ -1,0 +1,107 @@
+import numpy as np
+import pytest
+from navworld import room_with_door
+
+from rescuemesh.geometry import Pose2D
+from rescuemesh.maps.grid import OccupancyGrid
+from rescuemesh.nav import PLANNERS, Costmap, MCPPlanner, Planner, make_planner, register_planner
+from rescuemesh.nav.path import cumulative_lengths
+
+ROBOT_RADIUS = 0.177
+
+
+def true_clearance(grid: OccupancyGrid, pts: np.ndarray) -> np.ndarray:
+    """Exact distance in m from each point to the nearest occupied cell square."""
+    rows, cols = np.nonzero(grid.occupied)
+    lo_x = grid.origin_x + cols * grid.resolution
+    lo_y = grid.origin_y + rows * grid.resolution
+    dx = np.maximum(np.maximum(lo_x[None, :] - pts[:, :1], 0.0), pts[:, :1] - (lo_x[None, :] + grid.resolution))
+    dy = np.maximum(np.maximum(lo_y[None, :] - pts[:, 1:], 0.0), pts[:, 1:] - (lo_y[None, :] + grid.resolution))
+    return np.hypot(dx, dy).min(axis=1)
+
+
+def densify(points: np.ndarray, step: float = 0.01) -> np.ndarray:
+    cum = cumulative_lengths(points)
+    s = np.arange(0.0, cum[-1], step)
+    return np.stack([np.interp(s, cum, points[:, 0]), np.interp(s, cum, points[:, 1])], axis=1)
+
+
+def test_registry_makes_planners_by_name():
+    assert isinstance(make_planner("mcp"), MCPPlanner)
+    assert isinstance(make_planner(), MCPPlanner)
+    assert {"mcp", "straight"} <= set(PLANNERS)
+    with pytest.raises(ValueError, match="mcp"):
+        make_planner("rrt-star")
+    with pytest.raises(ValueError):
+        register_planner("mcp")(type("Dup", (Planner,), {"plan": lambda self, *a, **k: None}))
+
+
+@pytest.mark.parametrize("downsample", [1, 2])
+def test_path_goes_through_the_middle_of_the_doorway_clear_of_walls(room_costmap, downsample):
+    start, goal = Pose2D(1.0, 1.0), Pose2D(5.0, 3.0)
+    path = make_planner("mcp", downsample=downsample).plan(room_costmap, start, goal)
+    assert path is not None
+    np.testing.assert_allclose(path.points[0], (1.0, 1.0))
+    np.testing.assert_allclose(path.points[-1], (5.0, 3.0))
+    assert path.length_m == pytest.approx(cumulative_lengths(path.points)[-1])
+    dense = densify(path.points)
+    assert true_clearance(room_costmap.grid, dense).min() >= ROBOT_RADIUS
+    in_door = dense[np.abs(dense[:, 0] - 3.05) < 0.05]
+    assert len(in_door) and np.all(np.abs(in_door[:, 1] - 2.0) < 0.15)
+    assert len(path.points) < 15  # shortcut: a clean polyline, not a cell staircase
+
+
+def test_goal_walled_off_gives_none():
+    grid = room_with_door()
+    occ = grid.occupied.copy()
+    occ[:, 60:62] = True  # close the doorway
+    cm = Costmap(OccupancyGrid(occ, grid.resolution, grid.origin_x, grid.origin_y))
+    assert make_planner("mcp").plan(cm, Pose2D(1.0, 1.0), Pose2D(5.0, 3.0)) is None
+
+
+@pytest.mark.parametrize("goal", [Pose2D(3.05, 0.5), Pose2D(0.05, 2.0), Pose2D(0.2, 2.0), Pose2D(9.0, 2.0)])
+def test_goal_in_a_wall_or_its_inflation_gives_none(room_costmap, goal):
+    assert make_planner("mcp").plan(room_costmap, Pose2D(1.0, 1.0), goal) is None
+
+
+def test_goal_in_lethal_space_is_snapped_within_goal_tolerance(room_costmap):
+    goal = Pose2D(0.2, 2.0)  # 0.1 m from the west wall
+    path = make_planner("mcp").plan(room_costmap, Pose2D(1.5, 1.0), goal, goal_tolerance=0.3)
+    assert path is not None
+    end = path.points[-1]
+    assert room_costmap.is_free(*end)
+    assert np.hypot(*(end - (goal.x, goal.y))) <= 0.3
+
+
+def test_start_inside_inflation_is_snapped_to_free_space(room_costmap):
+    start = Pose2D(0.22, 1.0)  # brushed the west wall
+    assert not room_costmap.is_free(start.x, start.y)
+    path = make_planner("mcp").plan(room_costmap, start, Pose2D(2.0, 3.0))
+    assert path is not None
+    np.testing.assert_allclose(path.points[0], (start.x, start.y))
+    assert all(room_costmap.is_free(*p) for p in path.points[1:])
+
+
+def test_start_deep_in_a_wall_gives_none(room_costmap):
+    assert make_planner("mcp", start_snap_radius=0.2).plan(room_costmap, Pose2D(3.05, 0.5), Pose2D(1.0, 1.0)) is None
+
+
+def test_scan_obstacles_are_planned_around(corridor_costmap):
+    blocker = np.array([[4.0, 1.1 + dy] for dy in np.linspace(-0.2, 0.2, 9)])
+    cm = corridor_costmap.with_obstacles(blocker, 0.0)
+    path = make_planner("mcp").plan(cm, Pose2D(1.0, 1.1), Pose2D(7.0, 1.1))
+    assert path is not None
+    dense = densify(path.points)
+    gap = np.hypot(dense[:, None, 0] - blocker[None, :, 0], dense[:, None, 1] - blocker[None, :, 1]).min()
+    assert gap >= ROBOT_RADIUS
+
+
+def test_same_cell_start_and_goal(room_costmap):
+    path = make_planner("mcp").plan(room_costmap, Pose2D(1.0, 1.0), Pose2D(1.01, 1.0))
+    assert path is not None and path.length_m == pytest.approx(0.01)
+
+
+def test_straight_planner_refuses_to_cross_a_wall(room_costmap):
+    planner = make_planner("straight")
+    assert planner.plan(room_costmap, Pose2D(1.0, 2.0), Pose2D(2.0, 2.5)) is not None
+    assert planner.plan(room_costmap, Pose2D(1.0, 1.0), Pose2D(5.0, 1.0)) is None
