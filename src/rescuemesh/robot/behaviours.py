@@ -1,0 +1,188 @@
+"""Behaviours a robot runs: navigate to its own goal, follow a leader, move around a centre.
+
+Owns: each behaviour's state and its use of NavigateToPose. Must not know: the protocol wire,
+the simulator, who commanded the behaviour (the brain keeps that).
+A behaviour is stepped with (now, pose, scan) and returns a body twist (v in m/s, omega in rad/s).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from rescuemesh.body import LaserScan
+from rescuemesh.geometry import Pose2D, yaw_to_quaternion
+from rescuemesh.nav import GoalStatus, NavigateToPose
+
+STOPPED = (0.0, 0.0)
+
+
+class Behaviour:
+    """Base: `step` until `outcome` is set to "done" or "failed" (with `reason`)."""
+
+    name = "behaviour"
+
+    def __init__(self, nav: NavigateToPose) -> None:
+        self.nav = nav
+        self.outcome: str | None = None
+        self.reason = ""
+
+    @property
+    def finished(self) -> bool:
+        return self.outcome is not None
+
+    def progress(self) -> int:
+        """Percent done, 255 when unknown (MAVLink COMMAND_ACK convention)."""
+        return 255
+
+    def step(self, now: float, pose: Pose2D, scan: LaserScan | None) -> tuple[float, float]:
+        raise NotImplementedError
+
+    def halt(self, now: float) -> None:
+        """Stop driving: cancel the navigation goal."""
+        self.nav.cancel(now)
+
+    def _finish(self, outcome: str, reason: str = "") -> tuple[float, float]:
+        self.outcome, self.reason = outcome, reason
+        return STOPPED
+
+
+class NavigateBehaviour(Behaviour):
+    """Drive to one goal (a robot's own mission, or a Goto later)."""
+
+    name = "navigate"
+
+    def __init__(self, nav: NavigateToPose, goal: Pose2D, now: float) -> None:
+        super().__init__(nav)
+        self.goal = goal
+        self.goal_id = nav.send_goal(goal, now)
+
+    def step(self, now, pose, scan):
+        v_w = self.nav.step(now, pose, scan)
+        while (result := self.nav.next_result()) is not None:
+            if result.goal_id != self.goal_id:
+                continue
+            if result.status is GoalStatus.SUCCEEDED:
+                return self._finish("done")
+            return self._finish("failed", f"navigation {result.status.name.lower()}: {result.reason}")
+        return v_w
+
+
+class FollowBehaviour(Behaviour):
+    """Follow a leader: drive toward its latest pose, stop `distance_m` short along the path.
+
+    The leader is lost when no PoseUpdate has come for `partner_timeout_s`: then the robot stops.
+    """
+
+    name = "follow"
+
+    def __init__(self, nav, leader: int, target: Pose2D, now: float, *, distance_m: float,
+                 partner_timeout_s: float, regoal_shift_m: float = 0.1, clear_radius_m: float = 0.5) -> None:
+        super().__init__(nav)
+        self.leader = leader
+        self.distance_m = distance_m
+        self.partner_timeout_s = partner_timeout_s
+        self.regoal_shift_m = regoal_shift_m
+        self.clear_radius_m = clear_radius_m
+        self.target = target
+        self.last_heard = now
+        self._goal_target: Pose2D | None = None
+        self._send_goal(now)
+
+    def on_pose_update(self, pose: Pose2D, now: float) -> None:
+        self.target = pose
+        self.last_heard = now
+        if self.nav.status is not GoalStatus.ACTIVE:
+            self._send_goal(now)
+        elif self._goal_target is None or self._goal_target.distance_to(pose) > self.regoal_shift_m:
+            self._goal_target = pose
+            self.nav.update_goal(pose, now)  # move the goal without preempting it (Nav2's goal updater)
+
+    def _send_goal(self, now: float) -> None:
+        self._goal_target = self.target
+        self.nav.send_goal(self.target, now, stop_distance=self.distance_m, check_yaw=False,
+                           clear_radius=self.clear_radius_m)
+
+    def step(self, now, pose, scan):
+        if now - self.last_heard > self.partner_timeout_s:
+            self.halt(now)
+            return self._finish("failed", f"leader silent for {now - self.last_heard:.1f} s")
+        v_w = self.nav.step(now, pose, scan)
+        while self.nav.next_result() is not None:
+            pass  # preempted, reached (within distance) or aborted: the next PoseUpdate sets a new goal
+        return v_w
+
+
+@dataclass(frozen=True)
+class Waypoint:
+    """A MoveAround waypoint: the pose, and its heading as a quaternion (x, y, z, w) for a ROS goal."""
+
+    index: int
+    pose: Pose2D
+    quaternion: tuple[float, float, float, float] = field(compare=False)
+
+
+def circle_waypoints(center: Pose2D, radius_m: float, count: int, start_near: Pose2D) -> list[Waypoint]:
+    """`count` waypoints evenly spaced in angle on the circle, anticlockwise, tangent heading.
+
+    The first is the one nearest `start_near`; the list closes the circle by ending on it again,
+    so `count + 1` poses come back. (The paper divides the x axis into 20 steps and solves for y,
+    which bunches points at the circle's sides; equal angles space them evenly.)
+    """
+    step = 2.0 * math.pi / count
+    start_angle = math.atan2(start_near.y - center.y, start_near.x - center.x)
+    first = round(start_angle / step) % count
+    points = []
+    for k in range(count + 1):
+        index = (first + k) % count
+        angle = index * step
+        heading = angle + math.pi / 2.0
+        pose = Pose2D(center.x + radius_m * math.cos(angle), center.y + radius_m * math.sin(angle), heading)
+        points.append(Waypoint(index, pose, yaw_to_quaternion(heading)))
+    return points
+
+
+class MoveAroundBehaviour(Behaviour):
+    """Circle a centre anticlockwise through evenly spaced waypoints; skip those inside obstacles."""
+
+    name = "move-around"
+
+    def __init__(self, nav, waypoints: list[Waypoint], skipped: list[Waypoint], now: float,
+                 *, pass_radius_m: float = 0.3) -> None:
+        super().__init__(nav)
+        self.waypoints = waypoints
+        self.skipped = list(skipped)
+        self.pass_radius_m = pass_radius_m
+        self.current = 0
+        self.unreached: list[Waypoint] = []
+        self._goal_id = self._send(now)
+
+    def progress(self) -> int:
+        return int(100 * self.current / max(1, len(self.waypoints)))
+
+    def _send(self, now: float) -> int:
+        return self.nav.send_goal(self.waypoints[self.current].pose, now, check_yaw=False)
+
+    def _advance(self, now: float) -> bool:
+        self.current += 1
+        if self.current >= len(self.waypoints):
+            return False
+        self._goal_id = self._send(now)
+        return True
+
+    def step(self, now, pose, scan):
+        last = self.current == len(self.waypoints) - 1
+        if not last and pose.distance_to(self.waypoints[self.current].pose) < self.pass_radius_m:
+            self._advance(now)  # pass through intermediate waypoints without stopping
+        v_w = self.nav.step(now, pose, scan)
+        while (result := self.nav.next_result()) is not None:
+            if result.goal_id != self._goal_id:
+                continue
+            if result.status is GoalStatus.ABORTED:
+                self.unreached.append(self.waypoints[self.current])
+            if not self._advance(now):
+                if len(self.unreached) == len(self.waypoints):
+                    return self._finish("failed", "no waypoint reachable")
+                return self._finish("done")
+            v_w = STOPPED
+        return v_w
