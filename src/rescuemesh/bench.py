@@ -1,0 +1,43 @@
+"""`rescuemesh bench`: the figures we track: real-time factor of the follow scenario and codec rate.
+
+Owns: timing (wall clock) and the bench JSON. Must not know: scenario internals. Prints figures;
+never fails on time: speed goals are read, not asserted.
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+import time
+from pathlib import Path
+
+from rescuemesh.protocol.bench import codec_roundtrip_rate
+from rescuemesh.scenarios import ScenarioOptions
+from rescuemesh.scenarios.runner import run_scenario
+
+RTF_GOAL = 20.0
+CODEC_GOAL_FPS = 100_000
+
+
+def run_bench(out: Path, *, seed: int = 0) -> int:
+    outcome = run_scenario("follow", ScenarioOptions(seed=seed))
+    result = outcome.result
+    rate = codec_roundtrip_rate(1.0, time.perf_counter)
+    figures = {
+        "follow_real_time_factor": result["real_time_factor"],
+        "follow_sim_time_s": result["sim_time_s"],
+        "follow_wall_time_s": result["wall_time_s"],
+        "follow_success": result["success"],
+        "codec_frames_per_s": round(rate),
+        "max_frame_bytes": result["protocol"]["max_frame_bytes"],
+        "goals": {"real_time_factor": RTF_GOAL, "codec_frames_per_s": CODEC_GOAL_FPS},
+        "machine": {"python": platform.python_version(), "processor": platform.machine()},
+    }
+    print(f"follow scenario : {figures['follow_sim_time_s']:.1f} s simulated in {figures['follow_wall_time_s']:.2f} s"
+          f" -> {figures['follow_real_time_factor']}x real time (goal >= {RTF_GOAL:g}x)")
+    print(f"codec           : {figures['codec_frames_per_s']:,} encode+decode frames/s (goal >= {CODEC_GOAL_FPS:,})")
+    print(f"largest frame   : {figures['max_frame_bytes']} bytes")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(figures, indent=2) + "\n")
+    print(f"wrote {out}")
+    return 0

@@ -1,0 +1,167 @@
+"""The `rescuemesh` command: run a scenario, list scenarios, run the benchmark.
+
+Owns: argument parsing, progress display, the human summary, exit codes (0 success, 1 a scenario's
+criteria failed, 2 bad input). Must not know: how scenarios or the simulation work inside.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
+
+
+class UsageError(Exception):
+    """A user's mistake on the command line: printed as one line, exit 2."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # one line, no usage dump
+        raise UsageError(message)
+
+
+def _pose(text: str, *, with_yaw: bool) -> tuple[float, ...]:
+    parts = text.split(",")
+    want = 3 if with_yaw else 2
+    if len(parts) not in ((2, 3) if with_yaw else (2,)):
+        raise UsageError(f"expected {'X,Y[,YAW]' if with_yaw else 'X,Y'} in metres (and rad), got {text!r}")
+    try:
+        values = tuple(float(p) for p in parts)
+    except ValueError:
+        raise UsageError(f"not a number in {text!r}") from None
+    if not all(math.isfinite(v) for v in values):
+        raise UsageError(f"not a finite number in {text!r}")
+    return values + (0.0,) * (want - len(values))
+
+
+def _starts(items: list[str]):
+    from rescuemesh.geometry import Pose2D
+    from rescuemesh.robot import robot_address
+
+    starts = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep:
+            raise UsageError(f"--start takes NAME=X,Y,YAW, got {item!r}")
+        try:
+            robot_address(name)
+        except ValueError as error:
+            raise UsageError(str(error)) from None
+        starts[name] = Pose2D(*_pose(value, with_yaw=True))
+    return starts
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="rescuemesh", description="Robots that command each other over a short-range mesh.")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    run = sub.add_parser("run", help="run a scenario in the MuJoCo office")
+    run.add_argument("scenario", help="scenario name (see `rescuemesh scenarios`)")
+    run.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    run.add_argument("--out", type=Path, default=None, help="output folder (default out/SCENARIO)")
+    run.add_argument("--loss", type=float, default=0.0, help="per-frame loss probability in [0, 1) (default 0)")
+    run.add_argument("--map", type=Path, default=None, help="map file: rescuemesh wall YAML or ROS map_server YAML")
+    run.add_argument("--radius", type=float, default=1.5, help="move-around radius in m (default 1.5)")
+    run.add_argument("--start", action="append", default=[], metavar="NAME=X,Y,YAW", help="a robot's start pose")
+    run.add_argument("--goal", default=None, metavar="X,Y", help="the leader's goal in follow/stop")
+    run.add_argument("--time-limit", type=float, default=None, help="simulated seconds before giving up")
+    run.add_argument("--quiet", action="store_true", help="no progress display")
+    sub.add_parser("scenarios", help="list the scenarios")
+    bench = sub.add_parser("bench", help="measure the real-time factor and the codec rate")
+    bench.add_argument("--out", type=Path, default=Path("out/bench.json"), help="JSON file for the figures")
+    bench.add_argument("--seed", type=int, default=0)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    try:
+        args = build_parser().parse_args(argv)
+        if args.command == "scenarios":
+            return _list_scenarios()
+        if args.command == "bench":
+            from rescuemesh.bench import run_bench
+
+            return run_bench(args.out, seed=args.seed)
+        return _run(args)
+    except UsageError as error:
+        print(f"rescuemesh: error: {error}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("rescuemesh: interrupted", file=sys.stderr)
+        return 130
+
+
+def _list_scenarios() -> int:
+    from rescuemesh.scenarios import SCENARIOS
+
+    for name, cls in SCENARIOS.items():
+        print(f"{name:12s} {cls.summary}")
+    return EXIT_OK
+
+
+def _run(args) -> int:
+    from rescuemesh.geometry import Pose2D
+    from rescuemesh.maps import MapError
+    from rescuemesh.scenarios import ScenarioError, ScenarioOptions
+    from rescuemesh.scenarios.runner import run_scenario
+
+    if not (0.0 <= args.loss < 1.0):
+        raise UsageError(f"--loss must be in [0, 1), got {args.loss}")
+    if args.time_limit is not None and not args.time_limit > 0:
+        raise UsageError(f"--time-limit must be > 0 s, got {args.time_limit}")
+    goal = Pose2D(*_pose(args.goal, with_yaw=False)) if args.goal else None
+    options = ScenarioOptions(seed=args.seed, loss=args.loss, radius_m=args.radius, starts=_starts(args.start),
+                              goal=goal, time_limit_s=args.time_limit)
+    out = args.out or Path("out") / args.scenario
+    progress = None if args.quiet else _Progress(args.scenario)
+    try:
+        outcome = run_scenario(args.scenario, options, map_path=args.map, out_dir=out, progress=progress)
+    except (ScenarioError, MapError, ValueError) as error:
+        if progress:
+            progress.clear()
+        raise UsageError(str(error)) from None
+    if progress:
+        progress.clear()
+    _summary(outcome)
+    return EXIT_OK if outcome.verdict.success else EXIT_FAILED
+
+
+class _Progress:
+    """Simulated time against the limit: a live line on a terminal, a line every 10 s otherwise."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+        self.tty = sys.stderr.isatty()
+        self._last_line = -10.0
+
+    def __call__(self, sim_s: float, limit_s: float) -> None:
+        if self.tty:
+            done = int(30 * min(1.0, sim_s / limit_s))
+            sys.stderr.write(f"\r{self.name}: [{'#' * done}{'.' * (30 - done)}] {sim_s:5.1f} / {limit_s:.0f} s sim")
+            sys.stderr.flush()
+        elif sim_s - self._last_line >= 10.0:
+            print(f"{self.name}: {sim_s:5.1f} / {limit_s:.0f} s simulated", file=sys.stderr)
+            self._last_line = sim_s
+
+    def clear(self) -> None:
+        if self.tty:
+            sys.stderr.write("\r" + " " * 70 + "\r")
+
+
+def _summary(outcome) -> None:
+    r = outcome.result
+    p = r["protocol"]
+    print(f"{r['scenario']}: {'SUCCESS' if r['success'] else 'FAILED'}  (seed {r['seed']}, "
+          f"loss {r['settings']['loss']:g}, {r['sim_time_s']:.1f} s simulated in {r['wall_time_s']:.1f} s, "
+          f"{r['real_time_factor']}x real time)")
+    for check in r["criteria"]:
+        print(f"  [{'x' if check['ok'] else ' '}] {check['check']}")
+    metrics = ", ".join(f"{k}={v}" for k, v in r["metrics"].items() if not isinstance(v, (list, dict)))
+    print(f"  metrics: {metrics}")
+    print(f"  protocol: {p['frames_sent']} frames sent ({p['bytes_sent']} B, largest {p['max_frame_bytes']} B), "
+          f"{p['frames_lost']} lost ({p['frames_out_of_range']} out of range), {p['retries']} retries, {p['confirms']} confirms, "
+          f"{p['commands_failed']} commands failed")
+    for path in outcome.files:
+        print(f"  wrote {path}")

@@ -1,0 +1,22 @@
+"""Scenarios by name: each sets robots up, scripts a mission, and judges it.
+
+Owns: the registry. Must not know: the command line, output files.
+"""
+
+from rescuemesh.scenarios.base import Scenario, ScenarioError, ScenarioOptions, Verdict
+from rescuemesh.scenarios.follow import FollowScenario
+from rescuemesh.scenarios.move_around import MoveAroundScenario
+from rescuemesh.scenarios.stop import StopScenario
+
+SCENARIOS: dict[str, type[Scenario]] = {cls.name: cls for cls in (FollowScenario, StopScenario, MoveAroundScenario)}
+
+
+def get_scenario(name: str) -> type[Scenario]:
+    """The scenario class called `name`; ScenarioError lists the known ones."""
+    try:
+        return SCENARIOS[name]
+    except KeyError:
+        raise ScenarioError(f"unknown scenario {name!r}; known: {', '.join(SCENARIOS)}") from None
+
+
+__all__ = ["SCENARIOS", "Scenario", "ScenarioError", "ScenarioOptions", "Verdict", "get_scenario"]

@@ -1,0 +1,134 @@
+"""What a scenario is: options, start poses, a mission script stepped with the runtime, and a verdict.
+
+Owns: ScenarioOptions, ScenarioError, the Scenario base class and the command-retry helper that
+mission scripts share. Must not know: how results are written or plotted, the command line.
+"""
+
+from __future__ import annotations
+
+import abc
+import math
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+from rescuemesh.geometry import Pose2D
+from rescuemesh.maps import MapModel
+from rescuemesh.protocol import ResultCode
+from rescuemesh.robot import RobotBrain, robot_address
+from rescuemesh.runtime import SimRuntime, TrajectorySample
+
+ROBOTS = ("robot_1", "robot_2", "robot_3")
+
+
+class ScenarioError(ValueError):
+    """Options a scenario cannot run with; the message is one line for the user."""
+
+
+@dataclass(frozen=True)
+class ScenarioOptions:
+    """What a user may set for a run (the CLI's flags)."""
+
+    seed: int = 0
+    loss: float = 0.0
+    radius_m: float = 1.5
+    starts: dict[str, Pose2D] = field(default_factory=dict)
+    goal: Pose2D | None = None
+    time_limit_s: float | None = None
+
+
+@dataclass
+class Verdict:
+    """A scenario's outcome: success, the criteria checked (text, held), and its own metrics."""
+
+    success: bool
+    criteria: list[tuple[str, bool]]
+    metrics: dict
+
+
+class CommandRequest:
+    """Send a command until one copy is confirmed, at most `attempts` commands.
+
+    The protocol already resends each frame (3 sends); this is the mission's retry on top: when
+    the protocol gives a command up, the brain sends Stop to the peer, and once nothing to that
+    peer is pending any more the mission asks again.
+    """
+
+    def __init__(self, brain: RobotBrain, peer: str, send, *, attempts: int = 3) -> None:
+        self.brain, self.peer, self._send = brain, robot_address(peer), send
+        self.attempts, self.seqs = attempts, []
+
+    def poll(self, now: float) -> ResultCode | None:
+        """The result of the first confirmed copy, or None while waiting. Sends as needed."""
+        for seq in self.seqs:
+            sent = self.brain.outgoing[seq]
+            if sent.result is not None and not sent.failed:
+                return sent.result
+        pending = any(not c.failed and c.result is None for c in self.brain.outgoing.values() if c.peer == self.peer)
+        if not pending and len(self.seqs) < self.attempts:
+            self.seqs.append(self._send(self.peer, now))
+        return None
+
+    @property
+    def given_up(self) -> bool:
+        return len(self.seqs) >= self.attempts and all(self.brain.outgoing[s].failed for s in self.seqs)
+
+
+class Scenario(abc.ABC):
+    """One scenario: robots, a mission script, success criteria and metrics."""
+
+    name: ClassVar[str]
+    summary: ClassVar[str]
+    time_limit_s: ClassVar[float]
+
+    def __init__(self, options: ScenarioOptions, map_model: MapModel) -> None:
+        self.options = options
+        self.map = map_model
+        self.validate()
+
+    @property
+    def limit_s(self) -> float:
+        return self.options.time_limit_s or self.time_limit_s
+
+    def validate(self) -> None:
+        """Raise ScenarioError for options this scenario cannot run with."""
+
+    def starts(self) -> dict[str, Pose2D]:
+        """Start poses: the map's defaults, overridden by --start."""
+        starts = {name: pose for name, pose in self.map.starts.items() if name in ROBOTS}
+        starts.update(self.options.starts)
+        for name in self.options.starts:
+            robot_address(name)  # ValueError for an unknown robot name
+        missing = [name for name in ROBOTS if name not in starts]
+        if missing:
+            raise ScenarioError(f"map {self.map.name!r} has no start pose for {', '.join(missing)}: "
+                                f"give --start NAME=X,Y,YAW")
+        for name, pose in starts.items():
+            if self.map.grid.is_occupied(pose.x, pose.y):
+                raise ScenarioError(f"start of {name} ({pose.x:.2f}, {pose.y:.2f}) is inside an obstacle "
+                                    f"or off the map")
+        return starts
+
+    @abc.abstractmethod
+    def tick(self, rt: SimRuntime) -> None:
+        """The mission script, run after every control step."""
+
+    @abc.abstractmethod
+    def finished(self, rt: SimRuntime) -> bool:
+        """True when the scenario has played out (before its time limit)."""
+
+    @abc.abstractmethod
+    def evaluate(self, rt: SimRuntime) -> Verdict:
+        """Success criteria and the scenario's metrics."""
+
+
+def no_collisions(rt: SimRuntime) -> tuple[str, bool]:
+    total = sum(rt.world.collisions.values())
+    return (f"no collision ({total} seen)", total == 0)
+
+
+def mean_distance(a: list[TrajectorySample], b: list[TrajectorySample], t0: float, t1: float) -> float:
+    """Mean distance in m between two robots' recorded positions over [t0, t1] s."""
+    pairs = [(p.pose, q.pose) for p, q in zip(a, b) if t0 <= p.time_s <= t1]
+    if not pairs:
+        return math.nan
+    return sum(p.distance_to(q) for p, q in pairs) / len(pairs)

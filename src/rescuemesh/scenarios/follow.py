@@ -1,0 +1,110 @@
+"""Scenario `follow`: robot_1 drives from the hall through a doorway into a room; robot_2 follows.
+
+Owns: the Follow mission script, its success criteria and metrics (paper section IV-A, Fig. 3).
+Must not know: how the world is simulated or how results are written.
+"""
+
+from __future__ import annotations
+
+from rescuemesh.geometry import Pose2D
+from rescuemesh.protocol import ResultCode
+from rescuemesh.runtime import SimRuntime
+from rescuemesh.scenarios.base import CommandRequest, Scenario, ScenarioError, Verdict, mean_distance, no_collisions
+
+#: On a map with no named regions, follow succeeds when the follower ends this close to the leader (m).
+FOLLOWER_END_DISTANCE_M = 2.0
+#: The follower counts as settled once its speed stays below this (m/s) for SETTLE_S seconds.
+SETTLED_SPEED = 0.03
+SETTLE_S = 1.5
+
+
+class FollowScenario(Scenario):
+    name = "follow"
+    summary = "robot_1 drives through a doorway into another room; robot_2 follows it; robot_3 stays put"
+    time_limit_s = 120.0
+    leader, follower = "robot_1", "robot_2"
+
+    def validate(self) -> None:
+        goal = self.goal()
+        if self.map.grid.is_occupied(goal.x, goal.y):
+            raise ScenarioError(f"goal ({goal.x:.2f}, {goal.y:.2f}) is inside an obstacle or off the map")
+
+    def goal(self) -> Pose2D:
+        if self.options.goal is not None:
+            return self.options.goal
+        if "follow_leader" in self.map.goals:
+            return self.map.goals["follow_leader"]
+        raise ScenarioError(f"map {self.map.name!r} has no default goal for the leader: give --goal X,Y")
+
+    def __init__(self, options, map_model) -> None:
+        super().__init__(options, map_model)
+        self._request: CommandRequest | None = None
+        self.accepted_s: float | None = None
+        self.arrived_s: float | None = None
+        self.settled_s: float | None = None
+        self._leader_result: str | None = None
+
+    def tick(self, rt: SimRuntime) -> None:
+        now = rt.time
+        leader = rt.brain(self.leader)
+        if self._request is None:
+            self._request = CommandRequest(leader, self.follower, leader.command_follow)
+        if self.accepted_s is None:
+            if self._request.poll(now) == ResultCode.ACCEPTED:
+                self.accepted_s = now
+                leader.navigate_to(self.goal(), now)
+            return
+        if self.arrived_s is None and leader.running is None:
+            self.arrived_s = now
+            self._leader_result = _last_result(leader, "navigate")
+        if self.arrived_s is not None and self.settled_s is None:
+            recent = [s for s in rt.trajectories[self.follower] if s.time_s >= now - SETTLE_S]
+            if now - self.arrived_s >= SETTLE_S and all(s.speed < SETTLED_SPEED for s in recent):
+                self.settled_s = now
+
+    def finished(self, rt: SimRuntime) -> bool:
+        return self.settled_s is not None or (self._request is not None and self._request.given_up)
+
+    def evaluate(self, rt: SimRuntime) -> Verdict:
+        leader_end = rt.trajectories[self.leader][-1].pose
+        follower_end = rt.trajectories[self.follower][-1].pose
+        goal = self.goal()
+        goal_region = self.map.region_of(goal.x, goal.y)
+        criteria = [("Follow confirmed ACCEPTED", self.accepted_s is not None),
+                    ("leader reached its goal", self._leader_result == "DONE")]
+        passed_doorway = None
+        if goal_region is not None and self.map.regions:
+            start = rt.trajectories[self.follower][0].pose
+            start_region = self.map.region_of(start.x, start.y)
+            passed_doorway = start_region != goal_region and self.map.region_of(follower_end.x, follower_end.y) == goal_region
+            criteria += [(f"leader ends in {goal_region}", self.map.region_of(leader_end.x, leader_end.y) == goal_region),
+                         (f"follower ends in {goal_region}", passed_doorway)]
+        else:
+            gap = leader_end.distance_to(follower_end)
+            criteria.append((f"follower ends within {FOLLOWER_END_DISTANCE_M} m of the leader ({gap:.2f} m)",
+                             gap <= FOLLOWER_END_DISTANCE_M))
+        criteria.append(no_collisions(rt))
+        t0 = self.accepted_s or 0.0
+        t1 = self.arrived_s or rt.time
+        metrics = {
+            "follower_passed_doorway": passed_doorway,
+            "mean_following_distance_m": _round(mean_distance(rt.trajectories[self.leader],
+                                                              rt.trajectories[self.follower], t0, t1)),
+            "final_gap_m": round(leader_end.distance_to(follower_end), 3),
+            "follow_accepted_s": self.accepted_s,
+            "leader_arrived_s": self.arrived_s,
+            "goal": [goal.x, goal.y],
+            "goal_region": goal_region,
+        }
+        return Verdict(all(ok for _, ok in criteria), criteria, metrics)
+
+
+def _last_result(brain, behaviour: str) -> str | None:
+    for event in reversed(brain.log):
+        if event.kind == "behaviour_ended" and event.detail.startswith(behaviour + ":"):
+            return event.detail.split()[1]
+    return None
+
+
+def _round(value: float, digits: int = 3):
+    return None if value != value else round(value, digits)

@@ -1,0 +1,63 @@
+"""Bad input gets one clear line on stderr and exit 2, never a traceback."""
+
+import subprocess
+import sys
+
+import pytest
+
+from rescuemesh.cli import main
+
+
+@pytest.fixture
+def broken_map(tmp_path):
+    path = tmp_path / "broken.yaml"
+    path.write_text("walls:\n  - [0, 0, 1]\n")
+    return path
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["run", "dance"], "unknown scenario"),
+    (["run", "move-around", "--radius", "0"], "radius"),
+    (["run", "move-around", "--radius", "-1.5"], "radius"),
+    (["run", "move-around", "--radius", "50"], "larger than the map"),
+    (["run", "move-around", "--radius", "nan"], "radius"),
+    (["run", "follow", "--loss", "1.0"], "--loss"),
+    (["run", "follow", "--loss", "-0.1"], "--loss"),
+    (["run", "follow", "--loss", "lots"], "invalid float"),
+    (["run", "follow", "--map", "/nonexistent/map.yaml"], "map.yaml"),
+    (["run", "follow", "--start", "robot_9=1,1,0"], "robot_9"),
+    (["run", "follow", "--start", "robot_x=1,1,0"], "unknown robot"),
+    (["run", "follow", "--start", "robot_1"], "NAME=X,Y,YAW"),
+    (["run", "follow", "--start", "robot_1=1,a,0"], "not a number"),
+    (["run", "follow", "--goal", "1"], "X,Y"),
+    (["run", "follow", "--goal", "-50,-50"], "goal"),
+    (["run", "follow", "--time-limit", "-3"], "--time-limit"),
+    (["fly"], "invalid choice"),
+    ([], "required"),
+])
+def test_bad_arguments_exit_2_with_one_line(argv, words, capsys, tmp_path):
+    code = main(argv + (["--out", str(tmp_path)] if argv[:1] == ["run"] else []))
+    err = capsys.readouterr().err.strip()
+    assert code == 2
+    assert len(err.splitlines()) == 1 and err.startswith("rescuemesh: error:")
+    assert words in err
+
+
+def test_broken_map_file_exits_2_naming_the_file(broken_map, capsys, tmp_path):
+    assert main(["run", "follow", "--map", str(broken_map), "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "broken.yaml" in err and len(err.strip().splitlines()) == 1
+
+
+def test_real_process_prints_no_traceback(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "rescuemesh", "run", "move-around", "--radius", "-1",
+                           "--out", str(tmp_path)], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr and "radius" in proc.stderr
+
+
+def test_scenarios_lists_the_three(capsys):
+    assert main(["scenarios"]) == 0
+    out = capsys.readouterr().out
+    for name in ("follow", "stop", "move-around"):
+        assert name in out
