@@ -1,0 +1,283 @@
+"""The sans-IO endpoint, one per robot (aioquic's QuicConnection shape): calls and received bytes in;
+frames to send, a timer and events out. Must not know sockets, radios, clocks or threads: every
+entry point takes `now` in s, and the caller moves the bytes (docs/design.md, docs/protocol.md).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import asdict, dataclass, field, replace
+
+from .codec import (
+    BROADCAST,
+    DEFAULT_TTL,
+    MAX_ATTEMPT,
+    MAX_SEQ,
+    MAX_TTL,
+    MAX_UNICAST_ADDRESS,
+    PROTOCOL_VERSION,
+    TYPE_MASK,
+    FrameFlags,
+    Header,
+    decode_frame,
+    encode_frame,
+)
+from .errors import FrameError
+from .events import (
+    CommandReceived,
+    ConfirmReceived,
+    DeliveryFailed,
+    Event,
+    FrameRejected,
+    HeartbeatReceived,
+    PoseUpdateReceived,
+)
+from .messages import (
+    COMMAND_TYPES,
+    PROGRESS_UNKNOWN,
+    Command,
+    Confirm,
+    Heartbeat,
+    Message,
+    MessageType,
+    Pose,
+    PoseUpdate,
+    ResultCode,
+    is_command,
+)
+from .reliability import DuplicateCache, ReliabilityConfig, RetransmissionQueue, TimeoutAction, Verdict
+
+
+@dataclass(frozen=True, slots=True)
+class EndpointConfig:
+    """reliability: retry and duplicate rules. initial_ttl: TTL of every frame we originate, in hops
+    (0..15). initial_seq: first sequence number (0..65535); a runtime that restarts an endpoint can
+    draw it from its seeded generator so old seqs are not reused at once."""
+
+    reliability: ReliabilityConfig = field(default_factory=ReliabilityConfig)
+    initial_ttl: int = DEFAULT_TTL
+    initial_seq: int = 0
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.initial_ttl, int) and 0 <= self.initial_ttl <= MAX_TTL):
+            raise ValueError(f"initial_ttl must be 0..{MAX_TTL}, got {self.initial_ttl!r}")
+        if not (isinstance(self.initial_seq, int) and 0 <= self.initial_seq <= MAX_SEQ):
+            raise ValueError(f"initial_seq must be 0..{MAX_SEQ}, got {self.initial_seq!r}")
+
+
+@dataclass(slots=True)
+class EndpointStats:
+    """Counters since the endpoint was made. Frames and bytes sent count frames drained by
+    frames_to_send(); frames_received counts every receive() call, including the rejected ones and
+    the ones not for us (other destination, or our own frames heard back)."""
+
+    frames_sent: int = 0
+    bytes_sent: int = 0
+    max_frame_bytes: int = 0
+    retries: int = 0  # resends (a frame sent 3 times counts 2)
+    confirms_sent: int = 0  # Confirm frames drained, cached re-sends included
+    confirms_received: int = 0
+    delivery_failures: int = 0
+    duplicates: int = 0  # commands/PoseUpdates recognised as resends
+    frames_rejected: int = 0
+    frames_not_for_us: int = 0
+    frames_received: int = 0
+
+    def as_dict(self) -> dict[str, int]:
+        return asdict(self)
+
+
+class Endpoint:
+    """One robot's protocol state. Drive it with:
+
+    - send_command / send_pose_update / send_heartbeat / confirm, and receive(data, now) for each
+      frame heard;
+    - frames_to_send(now) after any of those, to get the bytes to transmit;
+    - get_timer() and handle_timer(now) when that time comes, for resends and give-ups;
+    - next_event() until None, to learn what happened.
+    """
+
+    def __init__(self, address: int, config: EndpointConfig | None = None) -> None:
+        if not (isinstance(address, int) and 0 <= address <= MAX_UNICAST_ADDRESS):
+            raise ValueError(f"address must be 0..{MAX_UNICAST_ADDRESS}, got {address!r}")
+        self.address = address
+        self.config = config if config is not None else EndpointConfig()
+        self.stats = EndpointStats()
+        self._seq = self.config.initial_seq
+        self._outbox: list[bytes] = []
+        self._events: deque[Event] = deque()
+        self._pending = RetransmissionQueue(self.config.reliability)
+        self._seen = DuplicateCache(self.config.reliability)
+        # received message type -> handler; every MessageType has one
+        self._handlers = {t: self._on_command for t in COMMAND_TYPES}
+        self._handlers[MessageType.POSE_UPDATE] = self._on_pose_update
+        self._handlers[MessageType.CONFIRM] = self._on_confirm
+        self._handlers[MessageType.HEARTBEAT] = self._on_heartbeat
+
+    # --- sending -------------------------------------------------------------------------------
+
+    def send_command(self, dst: int, command: Command, now: float) -> int:
+        """Queue `command` to robot `dst`, confirmed and retried; returns its sequence number.
+
+        Raises ValueError for a non-command or a broadcast/own/out-of-range `dst`, EncodeError (a
+        ValueError) for values that do not fit the wire format.
+        """
+        if not is_command(command):
+            raise ValueError(f"not a command: {command!r}")
+        return self._send_confirmable(dst, command, now)
+
+    def send_pose_update(self, dst: int, pose: Pose, now: float) -> int:
+        """Queue a PoseUpdate to follower `dst`, confirmed and retried like a command; returns its seq."""
+        return self._send_confirmable(dst, PoseUpdate(pose), now)
+
+    def send_heartbeat(self, now: float, active_command: int = 0) -> None:
+        """Queue a broadcast Heartbeat (not confirmed, not retried). `active_command`: a command's
+        MessageType value, 0 when idle."""
+        message = Heartbeat(active_command, self.config.initial_ttl)
+        self._outbox.append(self._encode(BROADCAST, self._seq, message))
+        self._seq = (self._seq + 1) & MAX_SEQ
+
+    def confirm(
+        self,
+        dst: int,
+        ref_seq: int,
+        ref_type: MessageType,
+        result: ResultCode,
+        now: float,
+        progress: int = PROGRESS_UNKNOWN,
+    ) -> None:
+        """Answer frame `ref_seq` from `dst` (progress 0-100 %, 255 unknown).
+
+        The Confirm is cached for (dst, ref_seq): a resend of that frame gets it again. A later call
+        for the same frame (IN_PROGRESS, DONE, FAILED, CANCELLED) replaces the cached Confirm and is
+        sent once, unsolicited. Raises ValueError for a report RESULT_TRANSITIONS forbids (anything
+        after a final result) or a ref_type that does not match the frame, EncodeError for bad values.
+        """
+        self._check_unicast(dst)
+        frame = self._encode(dst, self._seq, Confirm(ref_seq, ref_type, result, progress))
+        self._seen.check_report(dst, ref_seq, ref_type, result)
+        self._seq = (self._seq + 1) & MAX_SEQ
+        self._seen.record_confirm(dst, ref_seq, result, frame)
+        self._outbox.append(frame)
+
+    def cancel_pending(self, dst: int | None = None) -> int:
+        """Stop retrying the frames to `dst` (all if None), without DeliveryFailed; returns how many."""
+        return len(self._pending.cancel(dst))
+
+    # --- the aioquic loop ----------------------------------------------------------------------
+
+    def receive(self, data: bytes, now: float) -> None:
+        """Handle one received frame. Never raises for any bytes: a bad frame becomes a
+        FrameRejected event and a `frames_rejected` count."""
+        self.stats.frames_received += 1
+        try:
+            header, message = decode_frame(data)
+        except FrameError as exc:
+            self.stats.frames_rejected += 1
+            self._events.append(FrameRejected(str(exc), type(exc).__name__, now))
+            return
+        if header.src == self.address or (header.dst != self.address and header.dst != BROADCAST):
+            self.stats.frames_not_for_us += 1
+            return
+        self._handlers[header.msg_type](header, message, now)
+
+    def frames_to_send(self, now: float) -> list[bytes]:
+        """Drain the frames queued since the last call, oldest first."""
+        frames, self._outbox = self._outbox, []
+        stats = self.stats
+        for frame in frames:
+            size = len(frame)
+            stats.frames_sent += 1
+            stats.bytes_sent += size
+            if size > stats.max_frame_bytes:
+                stats.max_frame_bytes = size
+            if frame[1] & TYPE_MASK == MessageType.CONFIRM:
+                stats.confirms_sent += 1
+        return frames
+
+    def get_timer(self) -> float | None:
+        """Time in s at which handle_timer() has work (the earliest resend deadline), or None."""
+        return self._pending.next_deadline()
+
+    def handle_timer(self, now: float) -> None:
+        """Resend every frame whose deadline has passed (same seq, attempt bits raised), or give up
+        after max_sends sends with a DeliveryFailed event."""
+        for action, frame in self._pending.expire(now):
+            if action is TimeoutAction.RESEND:
+                attempt = min(frame.sends - 1, MAX_ATTEMPT)
+                self._outbox.append(encode_frame(replace(frame.header, attempt=attempt), frame.message))
+                self.stats.retries += 1
+            else:
+                self.stats.delivery_failures += 1
+                self._events.append(DeliveryFailed(frame.dst, frame.seq, frame.message, frame.sends, now))
+
+    def next_event(self) -> Event | None:
+        """The oldest event not yet pulled, or None."""
+        return self._events.popleft() if self._events else None
+
+    # --- internals -----------------------------------------------------------------------------
+
+    def _check_unicast(self, dst: int) -> None:
+        if not (isinstance(dst, int) and 0 <= dst <= MAX_UNICAST_ADDRESS):
+            raise ValueError(f"destination must be a robot address 0..{MAX_UNICAST_ADDRESS}, got {dst!r}")
+        if dst == self.address:
+            raise ValueError(f"destination {dst} is this endpoint's own address")
+
+    def _header(self, dst: int, seq: int, message: Message) -> Header:
+        return Header(
+            PROTOCOL_VERSION, FrameFlags.NONE, self.config.initial_ttl, 0, message.TYPE,
+            self.address, dst, seq,
+        )
+
+    def _encode(self, dst: int, seq: int, message: Message) -> bytes:
+        return encode_frame(self._header(dst, seq, message), message)
+
+    def _send_confirmable(self, dst: int, message: Message, now: float) -> int:
+        self._check_unicast(dst)
+        seq = self._seq
+        for _ in range(MAX_SEQ + 1):  # after a wrap, skip a seq still awaiting its Confirm
+            if (dst, seq) not in self._pending:
+                break
+            seq = (seq + 1) & MAX_SEQ
+        else:
+            raise RuntimeError(f"{MAX_SEQ + 1} frames to {dst} await a Confirm")
+        header = self._header(dst, seq, message)
+        frame = encode_frame(header, message)
+        self._seq = (seq + 1) & MAX_SEQ
+        self._pending.add(dst, seq, header, message, now)
+        self._outbox.append(frame)
+        return seq
+
+    def _is_new(self, header: Header, message: Message, now: float) -> bool:
+        verdict, cached_confirm = self._seen.observe(header.src, header.seq, message, now)
+        if verdict is Verdict.NEW:
+            return True
+        self.stats.duplicates += 1
+        if cached_confirm is not None:  # Verdict.DUPLICATE_ANSWERED: our Confirm was lost
+            self._outbox.append(cached_confirm)
+        return False
+
+    def _on_command(self, header: Header, message: Command, now: float) -> None:
+        if self._is_new(header, message, now):
+            self._events.append(CommandReceived(header.src, header.seq, message, now))
+
+    def _on_pose_update(self, header: Header, message: PoseUpdate, now: float) -> None:
+        if self._is_new(header, message, now):
+            self._events.append(PoseUpdateReceived(header.src, header.seq, message.pose, now))
+
+    def _on_confirm(self, header: Header, message: Confirm, now: float) -> None:
+        self.stats.confirms_received += 1
+        frame = self._pending.acknowledge(header.src, message.ref_seq, message.ref_type)
+        if frame is None:  # a later result report, or a Confirm for a frame already confirmed
+            solicited, sends, rtt_s = False, 0, None
+        else:
+            solicited, sends, rtt_s = True, frame.sends, now - frame.last_sent_s
+        self._events.append(
+            ConfirmReceived(
+                header.src, message.ref_seq, message.ref_type, message.result, message.progress,
+                solicited, sends, rtt_s, now,
+            )
+        )
+
+    def _on_heartbeat(self, header: Header, message: Heartbeat, now: float) -> None:
+        self._events.append(HeartbeatReceived(header.src, message.active_command, now))

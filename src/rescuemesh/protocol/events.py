@@ -1,0 +1,90 @@
+"""Events the Endpoint hands to its application, pulled with `Endpoint.next_event()` (None when empty).
+Owns the event dataclasses only; must not know how they are produced or what the application does.
+Every event carries `now`, the time in s at which it was produced.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Union
+
+from .messages import Command, Message, MessageType, Pose, ResultCode
+
+
+@dataclass(frozen=True, slots=True)
+class CommandReceived:
+    """A new (not a resend) command addressed to us. Answer it with `Endpoint.confirm(src, seq, ...)`."""
+
+    src: int
+    seq: int
+    command: Command
+    now: float
+
+
+@dataclass(frozen=True, slots=True)
+class PoseUpdateReceived:
+    """A new PoseUpdate addressed to us. Confirm it: ACCEPTED if following `src`, DENIED otherwise."""
+
+    src: int
+    seq: int
+    pose: Pose
+    now: float
+
+
+@dataclass(frozen=True, slots=True)
+class ConfirmReceived:
+    """A Confirm from `src` for our frame `ref_seq`.
+
+    solicited: it answers a frame we were still retrying; `sends` is how many sends that took and
+    `rtt_s` the time in s since the last send. Otherwise (a later result report or a duplicate
+    Confirm) solicited is False, sends 0 and rtt_s None.
+    """
+
+    src: int
+    ref_seq: int
+    ref_type: MessageType
+    result: ResultCode
+    progress: int
+    solicited: bool
+    sends: int
+    rtt_s: float | None
+    now: float
+
+
+@dataclass(frozen=True, slots=True)
+class DeliveryFailed:
+    """No Confirm for frame `seq` to `dst` after `sends` (= max_sends) sends; retrying stopped."""
+
+    dst: int
+    seq: int
+    message: Message
+    sends: int
+    now: float
+
+
+@dataclass(frozen=True, slots=True)
+class HeartbeatReceived:
+    """A Heartbeat from `src`; `active_command` is a MessageType value or 0 when idle."""
+
+    src: int
+    active_command: int
+    now: float
+
+
+@dataclass(frozen=True, slots=True)
+class FrameRejected:
+    """A received frame was dropped: `error_type` is the FrameError subclass name, `reason` its text."""
+
+    reason: str
+    error_type: str
+    now: float
+
+
+Event = Union[
+    CommandReceived,
+    PoseUpdateReceived,
+    ConfirmReceived,
+    DeliveryFailed,
+    HeartbeatReceived,
+    FrameRejected,
+]

@@ -1,0 +1,34 @@
+"""protocol/ imports only the allowed stdlib modules and itself (docs/design.md)."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import rescuemesh.protocol
+
+ALLOWED = {"__future__", "struct", "zlib", "enum", "dataclasses", "collections", "typing", "abc", "math"}
+PACKAGE = Path(rescuemesh.protocol.__file__).parent
+
+
+def test_protocol_imports_only_the_stdlib_allow_list_and_itself():
+    for path in PACKAGE.glob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                if node.level > 0:  # relative: the package itself
+                    continue
+                names = [node.module]
+            else:
+                continue
+            for name in names:
+                assert name.split(".")[0] in ALLOWED, f"{path.name} imports {name}"
+
+
+def test_modules_open_with_a_short_docstring_and_stay_small():
+    for path in PACKAGE.glob("*.py"):
+        text = path.read_text(encoding="utf-8")
+        doc = ast.get_docstring(ast.parse(text))
+        assert doc and 2 <= len(doc.splitlines()) <= 3, path.name
+        assert len(text.splitlines()) <= 400, path.name
