@@ -5,7 +5,8 @@ import pytest
 
 from rescuemesh.geometry import Pose2D
 from rescuemesh.nav import ControllerParams, compute_velocity, limit_acceleration
-from rescuemesh.nav.controller import obstacle_clearance
+from rescuemesh.nav.controller import obstacle_clearance, obstacle_reach
+from rescuemesh.nav.path import Polyline
 
 P = ControllerParams()
 ORIGIN = Pose2D(0.0, 0.0, 0.0)
@@ -107,3 +108,24 @@ def test_obstacle_beyond_the_path_end_does_not_stop_short_of_the_goal():
     assert compute_velocity(ORIGIN, path, wall_beyond, P) == compute_velocity(ORIGIN, path, None, P)
     before_end = np.array([[0.45, 0.0]])
     assert compute_velocity(ORIGIN, path, before_end, P)[0] == 0.0
+
+
+def test_a_polyline_path_gives_the_same_command_as_the_array():
+    curve = np.array([[0.0, 0.0], [0.3, 0.0], [0.5, 0.3], [0.5, 2.0]])
+    scan = np.array([[0.6, 0.4], [0.9, 0.2], [-0.3, 0.1]])
+    for pose in (ORIGIN, Pose2D(0.1, -0.1, 0.4), Pose2D(0.45, 0.5, 1.5)):
+        assert compute_velocity(pose, Polyline.from_points(curve), scan, P) == compute_velocity(pose, curve, scan, P)
+
+
+def test_scan_points_beyond_the_obstacle_reach_cannot_change_the_command():
+    rng = np.random.default_rng(3)
+    reach = obstacle_reach(P)
+    far = rng.uniform(-4.0, 4.0, size=(400, 2))
+    far = far[np.hypot(far[:, 0], far[:, 1]) > reach]
+    for curvature in (0.0, 0.5, -1.5, 4.0):
+        assert obstacle_clearance(far, curvature, P) > max(P.obstacle_slow_distance, P.obstacle_stop_distance)
+    near = np.array([[0.8, 0.05]])
+    for path in (STRAIGHT, np.array([[0.0, 0.0], [0.5, 0.0], [0.8, 0.6]])):
+        with_far = compute_velocity(ORIGIN, path, np.vstack([near, far]), P)
+        assert with_far == compute_velocity(ORIGIN, path, near, P)
+        assert compute_velocity(ORIGIN, path, far, P) == compute_velocity(ORIGIN, path, None, P)

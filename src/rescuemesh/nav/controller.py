@@ -7,12 +7,13 @@ regulation, the swept-footprint obstacle check). Must not know: planning, goals'
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 from dataclasses import dataclass
 
 import numpy as np
 
 from rescuemesh.geometry import Pose2D, wrap_angle
-from rescuemesh.nav.path import cumulative_lengths, point_at, project
+from rescuemesh.nav.path import Polyline
 
 
 @dataclass(frozen=True)
@@ -50,9 +51,18 @@ def rotate_toward(heading_error: float, params: ControllerParams) -> float:
 
 def to_robot_frame(pose: Pose2D, points: np.ndarray) -> np.ndarray:
     """(N, 2) map-frame points in m expressed in the robot frame (x forward, y left)."""
-    d = np.asarray(points, dtype=float).reshape(-1, 2) - (pose.x, pose.y)
+    return np.stack(_robot_frame_xy(pose, points), axis=1)
+
+
+def _robot_frame_xy(pose: Pose2D, points: np.ndarray, max_range: float = math.inf) -> tuple[np.ndarray, np.ndarray]:
+    """`to_robot_frame` as separate x and y arrays, leaving out points farther than `max_range` m."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    dx, dy = pts[:, 0] - pose.x, pts[:, 1] - pose.y
+    if max_range < math.inf:
+        near = dx * dx + dy * dy <= max_range * max_range
+        dx, dy = dx[near], dy[near]
     c, s = math.cos(pose.yaw), math.sin(pose.yaw)
-    return np.stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]], axis=1)
+    return c * dx + s * dy, -s * dx + c * dy
 
 
 def obstacle_clearance(
@@ -66,28 +76,46 @@ def obstacle_clearance(
     the robot will still drive, plus a margin) are ignored: a wall just beyond the goal does not
     stop the robot short of it. inf when the corridor is clear.
     """
-    if len(points_robot) == 0:
+    pts = np.asarray(points_robot, dtype=float).reshape(-1, 2)
+    return _clearance(pts[:, 0], pts[:, 1], curvature, params, horizon)
+
+
+def _clearance(x: np.ndarray, y: np.ndarray, curvature: float, params: ControllerParams, horizon: float) -> float:
+    """`obstacle_clearance` of robot-frame points given as x and y arrays in m."""
+    if len(x) == 0:
         return math.inf
-    x, y = points_robot[:, 0], points_robot[:, 1]
     half = params.footprint_radius + params.corridor_margin
     if abs(curvature) < 1e-3:
-        along, lateral = x, np.abs(y)
-        ahead = x >= 0.0
+        inside = (x >= 0.0) & (np.abs(y) <= half)
+        along, lateral = x[inside], np.abs(y[inside])
     else:
         r = 1.0 / curvature  # signed: centre of the turn at (0, r)
+        lateral = np.abs(np.hypot(x, y - r) - abs(r))
+        band = lateral <= half  # the swept annulus; the angles are only needed for these points
+        x, y, lateral = x[band], y[band], lateral[band]
         ang = np.arctan2(y - r, x)
         phi = np.mod(ang + math.pi / 2, 2 * math.pi) if r > 0 else np.mod(math.pi / 2 - ang, 2 * math.pi)
-        along = abs(r) * phi
-        lateral = np.abs(np.hypot(x, y - r) - abs(r))
         ahead = phi <= math.pi  # phi in [0, 2 pi): anticlockwise (left turn) or clockwise angle travelled
-    inside = ahead & (lateral <= half)
-    if not inside.any():
+        along, lateral = abs(r) * phi[ahead], lateral[ahead]
+    if len(along) == 0:
         return math.inf
-    lat = np.minimum(lateral[inside], params.footprint_radius)
+    lat = np.minimum(lateral, params.footprint_radius)
     extent = np.sqrt(params.footprint_radius**2 - lat**2)
-    gap = along[inside] - extent
+    gap = along - extent
     gap = gap[gap <= horizon]
     return float(np.min(gap)) if len(gap) else math.inf
+
+
+def obstacle_reach(params: ControllerParams) -> float:
+    """Distance in m from the robot's centre beyond which a scan point cannot change the speed scale.
+
+    A counted point lies within the corridor half-width of the arc, so the arc length to it is at
+    least its distance minus that half-width (an arc is no shorter than its chord), and its gap at
+    least that minus the footprint radius; a gap beyond both the slow and the stop distance gives
+    a scale of 1, as no point at all does. Plus 1 cm against rounding.
+    """
+    half = params.footprint_radius + params.corridor_margin
+    return max(params.obstacle_slow_distance, params.obstacle_stop_distance) + half + params.footprint_radius + 0.01
 
 
 def obstacle_speed_scale(clearance: float, params: ControllerParams) -> float:
@@ -108,7 +136,7 @@ def limit_acceleration(v: float, previous_v: float, dt: float, params: Controlle
 
 def compute_velocity(
     pose: Pose2D,
-    path: np.ndarray,
+    path: np.ndarray | Polyline,
     scan_points: np.ndarray | None,
     params: ControllerParams = ControllerParams(),
     *,
@@ -116,7 +144,7 @@ def compute_velocity(
     xy_tolerance: float = 0.0,
     current_speed: float | None = None,
 ) -> tuple[float, float]:
-    """One regulated-pure-pursuit command (v m/s, omega rad/s) to follow `path` ((N, 2) map m).
+    """One regulated-pure-pursuit command (v m/s, omega rad/s) to follow `path` ((N, 2) map m, or a Polyline).
 
     - Within `xy_tolerance` m of the path end: rotate in place to `goal_yaw` (rad), or (0, 0) without one.
     - Heading error to the lookahead point above `rotate_to_heading_angle`: rotate in place.
@@ -124,41 +152,45 @@ def compute_velocity(
       clamped; `current_speed` m/s defaults to max_linear), slowed on tight arcs, near the path end,
       and for scan obstacles (`scan_points`, (M, 2) map m) in the swept footprint ahead before the
       path end: stopped within `obstacle_stop_distance`. The arc's curvature is kept when omega saturates.
+
+    The geometry runs in plain floats on a `Polyline` (numpy only for the scan): a few segments
+    per tick are far cheaper that way than as tiny numpy arrays.
     """
-    pts = np.asarray(path, dtype=float).reshape(-1, 2)
-    if len(pts) == 0:
+    line = path if isinstance(path, Polyline) else Polyline.from_points(path)
+    if len(line) == 0:
         return (0.0, 0.0)
-    xy = np.array([pose.x, pose.y])
-    end = pts[-1]
-    if float(np.hypot(*(end - xy))) <= xy_tolerance:
+    x, y = pose.x, pose.y
+    if math.hypot(line.xs[-1] - x, line.ys[-1] - y) <= xy_tolerance:
         if goal_yaw is None:
             return (0.0, 0.0)
         return (0.0, rotate_toward(wrap_angle(goal_yaw - pose.yaw), params))
 
-    cum = cumulative_lengths(pts)
-    s_robot, _ = project(pts, xy, s_max=params.path_search_distance)
-    remaining = float(cum[-1] - s_robot)
+    s_robot, _ = line.project(x, y, s_max=params.path_search_distance)
+    remaining = line.length - s_robot
     speed = params.max_linear if current_speed is None else abs(current_speed)
     lookahead = min(params.max_lookahead, max(params.min_lookahead, speed * params.lookahead_time))
-    target = _lookahead_point(pts, cum, xy, s_robot, lookahead)
-    local = to_robot_frame(pose, target[None, :])[0]
-    dist2 = float(local @ local)
+    tx, ty = _lookahead_point(line, x, y, s_robot, lookahead)
+    # the lookahead point in the robot frame (to_robot_frame, in floats)
+    c, s = math.cos(pose.yaw), math.sin(pose.yaw)
+    dx, dy = tx - x, ty - y
+    lx, ly = c * dx + s * dy, -s * dx + c * dy
+    dist2 = lx * lx + ly * ly
     if dist2 < 1e-12:
         return (0.0, 0.0)
-    heading_error = math.atan2(local[1], local[0])
+    heading_error = math.atan2(ly, lx)
     if abs(heading_error) > params.rotate_to_heading_angle:
         return (0.0, rotate_toward(heading_error, params))
 
-    curvature = 2.0 * local[1] / dist2
+    curvature = 2.0 * ly / dist2
     v = params.max_linear
     if abs(curvature) > 1e-9 and 1.0 / abs(curvature) < params.regulated_min_radius:
         v *= (1.0 / abs(curvature)) / params.regulated_min_radius
     if remaining < params.approach_distance:
         v = min(v, max(params.min_approach_linear, params.max_linear * remaining / params.approach_distance))
     if scan_points is not None and len(scan_points):
-        near = to_robot_frame(pose, scan_points)
+        near_x, near_y = _robot_frame_xy(pose, scan_points, obstacle_reach(params))
         horizon = remaining + params.obstacle_end_margin
-        v *= obstacle_speed_scale(obstacle_clearance(near, curvature, params, horizon), params)
+        v *= obstacle_speed_scale(_clearance(near_x, near_y, curvature, params, horizon), params)
     omega = v * curvature
     if abs(omega) > params.max_angular:
         v *= params.max_angular / abs(omega)
@@ -166,21 +198,29 @@ def compute_velocity(
     return (float(v), float(omega))
 
 
-def _lookahead_point(pts: np.ndarray, cum: np.ndarray, xy: np.ndarray, s_robot: float, lookahead: float) -> np.ndarray:
-    """Where the path beyond the robot's projection first leaves the `lookahead` m circle, else the path end."""
-    later = np.flatnonzero(cum > s_robot)
-    if len(later) == 0:
-        return pts[-1]
-    cand = np.vstack([point_at(pts, s_robot, cum=cum)[None, :], pts[later]])
-    d = np.hypot(*(cand - xy).T)
-    beyond = np.flatnonzero(d >= lookahead)
-    if len(beyond) == 0:
-        return pts[-1]
-    k = int(beyond[0])
-    if k == 0:
-        return cand[0]
-    # intersection of the lookahead circle with the segment from cand[k-1] (inside) to cand[k] (outside)
-    p0, d = cand[k - 1] - xy, cand[k] - cand[k - 1]
-    a, b, c = float(d @ d), 2.0 * float(p0 @ d), float(p0 @ p0) - lookahead * lookahead
-    t = (-b + math.sqrt(max(b * b - 4.0 * a * c, 0.0))) / (2.0 * a) if a > 0.0 else 1.0
-    return cand[k - 1] + min(max(t, 0.0), 1.0) * d
+def _lookahead_point(line: Polyline, x: float, y: float, s_robot: float, lookahead: float) -> tuple[float, float]:
+    """Where the path beyond the robot's projection first leaves the `lookahead` m circle, else the path end.
+
+    Candidates: the projection, then every vertex beyond it, in order; the first one at least
+    `lookahead` m from (x, y) ends the search, and the circle is intersected with the segment to it.
+    """
+    xs, ys = line.xs, line.ys
+    end = (xs[-1], ys[-1])
+    first_later = bisect_right(line.cum, s_robot)
+    if first_later >= len(xs):
+        return end
+    px, py = line.point_at(s_robot)
+    if math.hypot(px - x, py - y) >= lookahead:
+        return px, py
+    for k in range(first_later, len(xs)):
+        qx, qy = xs[k], ys[k]
+        if math.hypot(qx - x, qy - y) >= lookahead:
+            # intersection of the lookahead circle with the segment from p (inside) to q (outside)
+            p0x, p0y, dx, dy = px - x, py - y, qx - px, qy - py
+            a, b = dx * dx + dy * dy, 2.0 * (p0x * dx + p0y * dy)
+            c = p0x * p0x + p0y * p0y - lookahead * lookahead
+            t = (-b + math.sqrt(max(b * b - 4.0 * a * c, 0.0))) / (2.0 * a) if a > 0.0 else 1.0
+            t = min(max(t, 0.0), 1.0)
+            return px + t * dx, py + t * dy
+        px, py = qx, qy
+    return end

@@ -127,6 +127,16 @@ class Costmap:
         out[inside] = self.cost[rows[inside], cols[inside]]
         return out
 
+    def any_lethal(self, xs: np.ndarray, ys: np.ndarray) -> bool:
+        """True when any of the map points (xs[i], ys[i]) in m is lethal (`costs_at(...) >= LETHAL`) or off the grid."""
+        rows = np.floor((ys - self.grid.origin_y) / self.resolution).astype(np.int64)
+        cols = np.floor((xs - self.grid.origin_x) / self.resolution).astype(np.int64)
+        try:
+            flat = np.ravel_multi_index((rows, cols), self.shape)  # bounds-checked in one call
+        except ValueError:
+            return True  # a point off the grid
+        return bool(self.lethal.reshape(-1)[flat].any())
+
     def clearance_at(self, x: float, y: float) -> float:
         """Distance in m from (x, y) to the nearest static map obstacle (0 outside the grid)."""
         row, col = self.world_to_cell(x, y)

@@ -17,8 +17,8 @@ import numpy as np
 from rescuemesh.body import LaserScan
 from rescuemesh.geometry import Pose2D, wrap_angle
 from rescuemesh.nav.controller import ControllerParams, compute_velocity, limit_acceleration, rotate_toward
-from rescuemesh.nav.costmap import LETHAL, Costmap
-from rescuemesh.nav.path import Path, point_at, project, slice_path
+from rescuemesh.nav.costmap import Costmap
+from rescuemesh.nav.path import Path
 from rescuemesh.nav.planner import Planner, make_planner
 
 
@@ -224,10 +224,10 @@ class NavigateToPose:
             return (0.0, 0.0)
         path = g.path
         assert path is not None
-        xy = np.array([pose.x, pose.y])
+        line = path.polyline  # per-path geometry, computed once per plan
         window = g.s_progress + p.controller.path_search_distance
-        g.s_progress, _ = project(path.points, xy, s_min=g.s_progress, s_max=window)
-        goal_gap = math.hypot(path.end[0] - g.pose.x, path.end[1] - g.pose.y)
+        g.s_progress, _ = line.project(pose.x, pose.y, s_min=g.s_progress, s_max=window)
+        goal_gap = math.hypot(line.xs[-1] - g.pose.x, line.ys[-1] - g.pose.y)
         remaining = max(0.0, path.length_m - g.s_progress) + goal_gap
         self._feedback = NavFeedback(g.goal_id, remaining, now)
 
@@ -243,7 +243,7 @@ class NavigateToPose:
         s_end = path.length_m
         if g.stop_distance > 0.0:
             s_end = path.length_m + goal_gap - g.stop_distance
-        local = slice_path(path.points, g.s_progress, s_end)
+        local = line.slice(g.s_progress, s_end)
         return compute_velocity(pose, local, self._scan_points, p.controller, current_speed=self._last_v)
 
     # -- helpers --------------------------------------------------------------------------------
@@ -253,9 +253,12 @@ class NavigateToPose:
         if pose.distance_to(g.pose) <= tol:
             return True
         # a goal in lethal space accepted via clear_radius is reached at the free cell the path ends in
-        end = g.path.end if g.path is not None else None
-        snapped = end is not None and math.hypot(end[0] - g.pose.x, end[1] - g.pose.y) > 1e-6
-        return snapped and math.hypot(end[0] - pose.x, end[1] - pose.y) <= tol
+        if g.path is None:
+            return False
+        line = g.path.polyline
+        ex, ey = line.xs[-1], line.ys[-1]
+        snapped = math.hypot(ex - g.pose.x, ey - g.pose.y) > 1e-6
+        return snapped and math.hypot(ex - pose.x, ey - pose.y) <= tol
 
     def _align(self, g: _Goal, now: float, pose: Pose2D) -> tuple[float, float]:
         self._feedback = NavFeedback(g.goal_id, pose.distance_to(g.pose), now)
@@ -320,11 +323,13 @@ class NavigateToPose:
         s0 = g.s_progress + self.params.controller.footprint_radius + 0.1
         if s0 >= g.path.length_m:
             return False
-        s = np.arange(s0, g.path.length_m, cm.resolution)
-        pts = point_at(g.path.points, s)
+        s = np.arange(s0, g.path.length_m, cm.resolution)  # np.interp clamps to the ends as point_at does
+        xs = np.interp(s, g.path.cum, g.path.points[:, 0])
+        ys = np.interp(s, g.path.cum, g.path.points[:, 1])
         if g.clear_radius > 0.0:
-            pts = pts[np.hypot(pts[:, 0] - g.pose.x, pts[:, 1] - g.pose.y) > g.clear_radius]
-        return bool(len(pts)) and bool((cm.costs_at(pts) >= LETHAL).any())
+            far = np.hypot(xs - g.pose.x, ys - g.pose.y) > g.clear_radius
+            xs, ys = xs[far], ys[far]
+        return len(xs) > 0 and cm.any_lethal(xs, ys)
 
     def _replan(self, g: _Goal, now: float, pose: Pose2D) -> bool:
         """Plan from `pose`; False (goal ABORTED "no path") when there is none even without scan obstacles."""

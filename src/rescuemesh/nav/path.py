@@ -1,12 +1,21 @@
 """Planned paths as map-frame polylines, and the geometry the planner, controller and action share.
 
-Owns: `Path` and pure polyline helpers (projection, arc length, slicing). Must not know how a path
-was planned or how it is followed; numpy only.
+Owns: `Path`, `Polyline` and pure polyline helpers (projection, arc length, slicing). Must not know
+how a path was planned or how it is followed; numpy and plain math only.
+
+Two flavours of the same geometry: the numpy functions work on whole (N, 2) arrays; `Polyline`
+answers the controller's per-tick questions (project the robot, a point at an arc length, the
+part ahead) in plain Python floats over the few segments concerned, from per-path data computed
+once. At 20 Hz on paths of a few dozen vertices, numpy's per-call overhead on tiny arrays would
+dominate. Both follow the same formulas (numpy's `interp` included), so they agree to rounding.
 """
 
 from __future__ import annotations
 
+import math
+from bisect import bisect_left, bisect_right
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -16,7 +25,8 @@ class Path:
     """A planned path: `points` is an (N, 2) float array of map-frame waypoints in m, N >= 1.
 
     The first point is the robot's start position, the last the goal position (or the free cell
-    the goal was snapped to). `length_m` is the polyline length in m.
+    the goal was snapped to). `length_m` is the polyline length in m. A Path is never modified
+    (its `cum` and `polyline` are computed on first use and kept).
     """
 
     points: np.ndarray
@@ -31,6 +41,16 @@ class Path:
     def end(self) -> np.ndarray:
         """The last waypoint (x, y) in m."""
         return self.points[-1]
+
+    @cached_property
+    def cum(self) -> np.ndarray:
+        """Arc length in m at each vertex (`cumulative_lengths`), computed once."""
+        return cumulative_lengths(self.points)
+
+    @cached_property
+    def polyline(self) -> "Polyline":
+        """The path as a `Polyline` for cheap per-tick queries, computed once."""
+        return Polyline.from_points(self.points, cum=self.cum)
 
 
 def cumulative_lengths(points: np.ndarray) -> np.ndarray:
@@ -91,3 +111,88 @@ def slice_path(points: np.ndarray, s_start: float = 0.0, s_end: float = np.inf) 
     if len(out) == 2 and s1 - s0 <= 1e-9:
         out = out[:1]
     return out
+
+
+class Polyline:
+    """A polyline in plain Python floats with its per-vertex arc lengths, for per-tick queries.
+
+    `xs`, `ys`: vertex coordinates in m (N >= 1); `cum`: arc length in m at each vertex; `length`:
+    the total. `project`, `point_at` and `slice` behave as the numpy functions of the same name but
+    only visit the segments in the requested arc-length window (found by bisection).
+    """
+
+    __slots__ = ("xs", "ys", "cum", "length")
+
+    def __init__(self, xs: list[float], ys: list[float], cum: list[float]) -> None:
+        self.xs, self.ys, self.cum = xs, ys, cum
+        self.length = cum[-1] if cum else 0.0
+
+    @classmethod
+    def from_points(cls, points: np.ndarray, *, cum: np.ndarray | None = None) -> "Polyline":
+        """From an (N, 2) array in m; `cum` its `cumulative_lengths` when already known."""
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        cum = cumulative_lengths(pts) if cum is None else cum
+        return cls(pts[:, 0].tolist(), pts[:, 1].tolist(), cum.tolist())
+
+    @classmethod
+    def from_vertices(cls, xs: list[float], ys: list[float]) -> "Polyline":
+        """From vertex coordinate lists in m (N >= 1); arc lengths summed as `cumulative_lengths` does."""
+        cum, s = [0.0], 0.0
+        for i in range(1, len(xs)):
+            s += math.hypot(xs[i] - xs[i - 1], ys[i] - ys[i - 1])
+            cum.append(s)
+        return cls(xs, ys, cum)
+
+    def __len__(self) -> int:
+        return len(self.xs)
+
+    def to_array(self) -> np.ndarray:
+        """The vertices as an (N, 2) array in m."""
+        return np.column_stack([self.xs, self.ys]).reshape(-1, 2)
+
+    def point_at(self, s: float) -> tuple[float, float]:
+        """(x, y) in m at arc length `s` m, clamped to the ends (`np.interp`'s arithmetic)."""
+        cum, xs, ys = self.cum, self.xs, self.ys
+        s = min(max(s, 0.0), self.length)
+        j = bisect_right(cum, s) - 1
+        if j >= len(cum) - 1 or cum[j] == s:
+            return xs[j], ys[j]
+        h = cum[j + 1] - cum[j]
+        return (xs[j + 1] - xs[j]) / h * (s - cum[j]) + xs[j], (ys[j + 1] - ys[j]) / h * (s - cum[j]) + ys[j]
+
+    def project(self, x: float, y: float, *, s_min: float = 0.0, s_max: float = math.inf) -> tuple[float, float]:
+        """`project` of the point (x, y) m: (arc length s in m, distance in m), within [s_min, s_max]."""
+        xs, ys, cum = self.xs, self.ys, self.cum
+        n = len(xs)
+        if n == 1:
+            return 0.0, math.hypot(x - xs[0], y - ys[0])
+        lo, hi = s_min, max(s_min, s_max)
+        # segments i with cum[i + 1] >= lo and cum[i] <= hi; none: the last one, clamped
+        first = max(bisect_left(cum, lo, 1) - 1, 0)
+        last = min(bisect_right(cum, hi) - 1, n - 2)
+        if first > last:
+            first = last = n - 2
+        best_s, best_d = 0.0, math.inf
+        for i in range(first, last + 1):
+            dx, dy = xs[i + 1] - xs[i], ys[i + 1] - ys[i]
+            len2 = dx * dx + dy * dy
+            t = ((x - xs[i]) * dx + (y - ys[i]) * dy) / (len2 if len2 > 0.0 else 1.0)
+            s = cum[i] + min(max(t, 0.0), 1.0) * math.sqrt(len2)
+            s = min(max(s, max(cum[i], lo)), min(cum[i + 1], hi))
+            px, py = self.point_at(s)
+            d = math.hypot(px - x, py - y)
+            if d < best_d or i == first:
+                best_s, best_d = s, d
+        return best_s, best_d
+
+    def slice(self, s_start: float = 0.0, s_end: float = math.inf) -> "Polyline":
+        """`slice_path`: the part between arc lengths `s_start` and `s_end` m, as a new Polyline (N >= 1)."""
+        cum = self.cum
+        s0 = min(max(s_start, 0.0), self.length)
+        s1 = min(max(s_end, s0), self.length)
+        i0, i1 = bisect_right(cum, s0), bisect_left(cum, s1)  # inner vertices: s0 < cum < s1
+        x0, y0 = self.point_at(s0)
+        if i0 >= i1 and s1 - s0 <= 1e-9:
+            return Polyline([x0], [y0], [0.0])
+        x1, y1 = self.point_at(s1)
+        return Polyline.from_vertices([x0, *self.xs[i0:i1], x1], [y0, *self.ys[i0:i1], y1])

@@ -109,6 +109,11 @@ class MCPPlanner(Planner):
     highest cost of each block (conservative: a block is lethal if any of its cells is); 2 turns the
     0.05 m office grid into 0.1 m and one plan from about 20 ms into about 5 ms. The shortcut pass
     always checks the full-resolution costmap.
+
+    The coarse grid and its MCP graph (about half a plan's time) are kept for the last cost array
+    planned on: costmaps are never modified, and successive costmaps share their cost array while
+    no scan obstacle is added (see `Costmap.with_obstacles`). Searches on the kept graph give the
+    same paths, as `find_costs` resets it.
     """
 
     def __init__(
@@ -128,6 +133,16 @@ class MCPPlanner(Planner):
         self.start_snap_radius = float(start_snap_radius)
         self.max_segment_m = float(max_segment_m)
         self.smooth = smooth
+        self._graph: tuple[np.ndarray, np.ndarray, MCP_Geometric] | None = None  # (costmap.cost, lethal, graph)
+
+    def _search_graph(self, costmap: Costmap) -> tuple[np.ndarray, MCP_Geometric]:
+        """(coarse lethal mask, MCP graph over the coarse costs) of `costmap`, reused for the same cost array."""
+        if self._graph is None or self._graph[0] is not costmap.cost:
+            coarse = self._coarse_cost(costmap)
+            lethal = coarse >= LETHAL
+            graph = MCP_Geometric(np.where(lethal, np.inf, 1.0 + self.cost_weight * coarse), fully_connected=True)
+            self._graph = (costmap.cost, lethal, graph)
+        return self._graph[1], self._graph[2]
 
     def _coarse_cost(self, costmap: Costmap) -> np.ndarray:
         k = self.downsample
@@ -149,8 +164,7 @@ class MCPPlanner(Planner):
         k = self.downsample
         cell = costmap.resolution * k
         ox, oy = costmap.grid.origin_x, costmap.grid.origin_y
-        coarse = self._coarse_cost(costmap)
-        lethal = coarse >= LETHAL
+        lethal, mcp = self._search_graph(costmap)
 
         def to_cell(x: float, y: float) -> tuple[int, int]:
             return (math.floor((y - oy) / cell), math.floor((x - ox) / cell))
@@ -194,7 +208,6 @@ class MCPPlanner(Planner):
 
         cells = [start_rc]
         if goal_rc != start_rc:
-            mcp = MCP_Geometric(np.where(lethal, np.inf, 1.0 + self.cost_weight * coarse), fully_connected=True)
             cum, _ = mcp.find_costs([start_rc], [goal_rc], find_all_ends=True)
             if not np.isfinite(cum[goal_rc]):
                 return None
