@@ -5,7 +5,7 @@ import pytest
 from team import Team
 
 from rescuemesh.geometry import Pose2D
-from rescuemesh.protocol import (Confirm, ForwardMsg, Goto, LandOnTop, MoveAround, Pose, ResultCode, Return,
+from rescuemesh.protocol import (Confirm, Endpoint, ForwardMsg, Goto, LandOnTop, MoveAround, Pose, ResultCode, Return,
                                  ShowCam, ShowScan)
 from rescuemesh.protocol.codec import decode_frame
 
@@ -51,7 +51,8 @@ def test_leader_gives_follow_up_after_three_unconfirmed_updates_and_follower_sto
     lost_at = team.time
     team.run(5.0)
     assert "follow_given_up" in team.kinds("robot_1") and TWO not in leader.streams
-    assert leader.commands_failed == 1
+    # the Follow stream, then the Stop sent after it (best effort) into the same silence
+    assert leader.commands_failed == 2 and [c.kind for c in leader.outgoing.values()] == ["Follow", "Stop"]
     given_up = next(e.time_s for e in leader.log if e.kind == "follow_given_up")
     assert given_up - lost_at <= 2.5  # three updates at 2 Hz, each retried for 0.3 s
     ended = [e for e in follower.log if e.kind == "behaviour_ended"]
@@ -118,3 +119,31 @@ def test_a_resent_command_is_not_executed_twice():
     messages = [decode_frame(f)[1] for f in follower.endpoint.frames_to_send(0.1)]
     confirms = [m for m in messages if isinstance(m, Confirm)]
     assert [c.result for c in confirms] == [ResultCode.ACCEPTED, ResultCode.ACCEPTED]  # the cached one again
+
+
+@pytest.mark.parametrize("then", ["stop", "follow"])
+def test_a_restarted_leader_reusing_sequence_numbers_does_not_crash_the_follower(then):
+    # this used to raise ValueError in the follower: its CANCELLED report answered the leader's new frame
+    team = two_robots()
+    follower = team.brains["robot_2"]
+    team.brains["robot_1"].command_follow(TWO, 0.0)
+    team.run(1.0)
+    restarted = Endpoint(ONE)  # a rebooted leader: its sequence numbers start at 0 again
+    team.brains["robot_1"].endpoint = restarted
+    team.link._radios[ONE].endpoint = restarted
+    brain = team.brains["robot_1"]
+    team.bodies["robot_1"].teleport(Pose2D(4.0, 7.0))  # a new Follow, not a byte-identical resend
+    seq = brain.command_stop(TWO, team.time) if then == "stop" else brain.command_follow(TWO, team.time)
+    team.run(1.0)
+    expected = ResultCode.DONE if then == "stop" else ResultCode.ACCEPTED
+    assert brain.outgoing[seq].result == expected
+    assert follower.behaviour == ("idle" if then == "stop" else "follow")
+
+
+def test_an_undelivered_showcam_is_not_followed_by_an_automatic_stop():
+    team = two_robots()
+    team.link.channel = type(team.link.channel)(range_m=0.5)
+    team.brains["robot_1"].send(TWO, ShowCam(Pose(1, 1, 0, 0), 1.0, 1), 0.0)
+    team.run(2.0)
+    kinds = [c.kind for c in team.brains["robot_1"].outgoing.values()]
+    assert kinds == ["ShowCam"]

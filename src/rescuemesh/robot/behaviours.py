@@ -69,17 +69,23 @@ class NavigateBehaviour(Behaviour):
 
 
 class FollowBehaviour(Behaviour):
-    """Follow a leader: drive toward its latest pose, stop `distance_m` short along the path.
+    """Follow a leader: drive toward where it is now, stop `distance_m` short along the path.
 
-    The leader is lost when no PoseUpdate has come for `partner_timeout_s`: then the robot stops.
+    PoseUpdates come at 2 Hz; between them the leader's position is predicted from its velocity
+    over the last two updates, at most `predict_horizon_s` ahead, so the follower moves smoothly
+    instead of lurching at each update. The leader is lost when no PoseUpdate has come for
+    `partner_timeout_s`: then the robot stops.
     """
 
     name = "follow"
 
     def __init__(self, nav, leader: int, target: Pose2D, now: float, *, distance_m: float,
-                 partner_timeout_s: float, regoal_shift_m: float = 0.1, clear_radius_m: float = 0.5) -> None:
+                 partner_timeout_s: float, regoal_shift_m: float = 0.1, clear_radius_m: float = 0.5,
+                 predict_horizon_s: float = 1.0) -> None:
         super().__init__(nav)
         self.leader = leader
+        self.predict_horizon_s = predict_horizon_s
+        self.velocity = (0.0, 0.0)  # leader's estimated velocity in the map frame, m/s
         self.distance_m = distance_m
         self.partner_timeout_s = partner_timeout_s
         self.regoal_shift_m = regoal_shift_m
@@ -90,13 +96,27 @@ class FollowBehaviour(Behaviour):
         self._send_goal(now)
 
     def on_pose_update(self, pose: Pose2D, now: float) -> None:
+        dt = now - self.last_heard
+        if dt > 0.05:
+            self.velocity = ((pose.x - self.target.x) / dt, (pose.y - self.target.y) / dt)
         self.target = pose
         self.last_heard = now
         if self.nav.status is not GoalStatus.ACTIVE:
             self._send_goal(now)
-        elif self._goal_target is None or self._goal_target.distance_to(pose) > self.regoal_shift_m:
-            self._goal_target = pose
-            self.nav.update_goal(pose, now)  # move the goal without preempting it (Nav2's goal updater)
+
+    def predicted_target(self, now: float) -> Pose2D:
+        """Where the leader should be at `now`, from its last pose and velocity (map frame)."""
+        ahead = min(max(0.0, now - self.last_heard), self.predict_horizon_s)
+        return Pose2D(self.target.x + self.velocity[0] * ahead, self.target.y + self.velocity[1] * ahead,
+                      self.target.yaw)
+
+    def _track(self, now: float) -> None:
+        target = self.predicted_target(now)
+        if self.nav.status is not GoalStatus.ACTIVE:
+            return
+        if self._goal_target is None or self._goal_target.distance_to(target) > self.regoal_shift_m:
+            self._goal_target = target
+            self.nav.update_goal(target, now)  # move the goal without preempting it (Nav2's goal updater)
 
     def _send_goal(self, now: float) -> None:
         self._goal_target = self.target
@@ -107,6 +127,7 @@ class FollowBehaviour(Behaviour):
         if now - self.last_heard > self.partner_timeout_s:
             self.halt(now)
             return self._finish("failed", f"leader silent for {now - self.last_heard:.1f} s")
+        self._track(now)
         v_w = self.nav.step(now, pose, scan)
         while self.nav.next_result() is not None:
             pass  # preempted, reached (within distance) or aborted: the next PoseUpdate sets a new goal

@@ -12,7 +12,6 @@ PoseUpdates failed (docs/design.md says why the retry rule is applied per update
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 from rescuemesh.body import Body
@@ -84,6 +83,7 @@ class _PoseStream:
     """The leader side of a Follow: PoseUpdates to one follower."""
 
     follower: int
+    follow_seq: int  # the Follow command this stream serves
     next_send_s: float
     failed_in_a_row: int = 0
     outstanding: set[int] = field(default_factory=set)
@@ -95,6 +95,10 @@ class _Running:
     commander: int | None = None  # address of the robot whose command started it; None: own mission
     seq: int | None = None
     msg_type: MessageType | None = None
+
+
+#: Commands that move the receiver: when one is given up, the sender sends Stop in case it runs.
+MOTION_COMMANDS = frozenset({"Follow", "MoveAround", "Goto", "Return", "LandOnTop"})
 
 
 def to_wire_pose(pose: Pose2D) -> Pose:
@@ -176,6 +180,12 @@ class RobotBrain:
     # ----- receiving -----
 
     def _on_event(self, event, now: float) -> None:
+        running = self.running
+        if isinstance(event, (CommandReceived, PoseUpdateReceived)) and running is not None \
+                and (running.commander, running.seq) == (event.src, event.seq):
+            # The sender reused the running command's seq (it restarted, or its counter wrapped): a
+            # final report for the old command would now answer this new frame. Report nothing.
+            running.seq = None
         if isinstance(event, CommandReceived):
             self._note(event.now, "command_received", f"{type(event.command).__name__} from {robot_name(event.src)}")
             handler = self._handlers.get(type(event.command), self._on_unsupported)
@@ -193,7 +203,7 @@ class RobotBrain:
             pass
 
     def _confirm(self, event, result: ResultCode, now: float, progress: int = 255) -> None:
-        ref_type = MessageType.POSE_UPDATE if isinstance(event, PoseUpdateReceived) else _type_of(event.command)
+        ref_type = MessageType.POSE_UPDATE if isinstance(event, PoseUpdateReceived) else event.command.TYPE
         self.endpoint.confirm(event.src, event.seq, ref_type, result, now, progress=progress)
 
     def _on_unsupported(self, event: CommandReceived, now: float) -> None:
@@ -220,7 +230,8 @@ class RobotBrain:
         free = [p for p in points if self.costmap.is_free(p.pose.x, p.pose.y)]
         skipped = [p for p in points if p not in free]
         if skipped:
-            self._note(now, "waypoints_skipped", ", ".join(str(p.index) for p in skipped))
+            indices = dict.fromkeys(p.index for p in skipped)  # the closing repeat of the first is one waypoint
+            self._note(now, "waypoints_skipped", ", ".join(str(i) for i in indices))
         if not free:
             self._confirm(event, ResultCode.DENIED, now)
             self._note(now, "command_denied", "MoveAround: every waypoint is inside an obstacle")
@@ -256,10 +267,13 @@ class RobotBrain:
         if event.solicited:
             sent.sends = event.sends
         self._note(event.now, "confirm", f"{sent.kind} by {robot_name(event.src)}: {event.result.name}")
-        if sent.kind == "Follow" and event.solicited and event.result == ResultCode.ACCEPTED:
-            self.streams[event.src] = _PoseStream(event.src, next_send_s=now)
+        if sent.kind == "Follow" and event.solicited and event.result == ResultCode.ACCEPTED \
+                and not self._stopped_since(event.src, sent.sent_s):
+            self.streams[event.src] = _PoseStream(event.src, event.ref_seq, next_send_s=now)
         elif sent.kind == "Follow" and event.result in (ResultCode.CANCELLED, ResultCode.FAILED):
-            self.streams.pop(event.src, None)
+            stream = self.streams.get(event.src)
+            if stream is not None and stream.follow_seq == event.ref_seq:
+                del self.streams[event.src]
 
     def _on_delivery_failed(self, event: DeliveryFailed, now: float) -> None:
         if isinstance(event.message, PoseUpdate):
@@ -273,6 +287,7 @@ class RobotBrain:
                 self.commands_failed += 1
                 self._note(now, "follow_given_up",
                            f"{robot_name(event.dst)}: {stream.failed_in_a_row} PoseUpdates in a row unconfirmed")
+                self.command_stop(event.dst, now)  # best effort; the follower also stops on its own timeout
             return
         sent = self.outgoing.get(event.seq)
         if sent is None:
@@ -280,9 +295,14 @@ class RobotBrain:
         sent.failed, sent.sends = True, event.sends
         self.commands_failed += 1
         self._note(now, "command_given_up", f"{sent.kind} to {robot_name(event.dst)} after {event.sends} sends")
-        if sent.kind != "Stop":
+        if sent.kind in MOTION_COMMANDS:
             # The receiver may have executed it with every Confirm lost: bring both sides to a stop.
             self.command_stop(event.dst, now)
+
+    def _stopped_since(self, peer: int, since_s: float) -> bool:
+        """Whether this robot sent `peer` a Stop at or after `since_s`."""
+        return any(c.kind == "Stop" and c.peer == peer and c.sent_s >= since_s
+                   for c in self.outgoing.values())
 
     # ----- sending -----
 
@@ -314,23 +334,10 @@ class RobotBrain:
             return
         running.behaviour.halt(now)
         self._note(now, "behaviour_ended", f"{running.behaviour.name}: {result.name} {reason}".rstrip())
-        if running.commander is not None:
+        if running.commander is not None and running.seq is not None:
             # Report the final result to the commander (best effort: an unsolicited Confirm).
             self.endpoint.confirm(running.commander, running.seq, running.msg_type, result, now,
                                   progress=running.behaviour.progress() if result != ResultCode.DONE else 100)
 
     def _note(self, now: float, kind: str, detail: str = "") -> None:
         self.log.append(BrainEvent(round(now, 3), self.name, kind, detail))
-
-
-def _type_of(command) -> MessageType:
-    return MessageType[_TYPE_NAMES[type(command).__name__]]
-
-
-_TYPE_NAMES = {
-    "Follow": "FOLLOW", "ShowCam": "SHOW_CAM", "ShowScan": "SHOW_SCAN", "LandOnTop": "LAND_ON_TOP",
-    "Goto": "GOTO", "Stop": "STOP", "ForwardMsg": "FORWARD_MSG", "Return": "RETURN",
-    "MoveAround": "MOVE_AROUND",
-}
-
-_ = math  # reserved for heading helpers
