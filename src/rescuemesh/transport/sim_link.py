@@ -56,7 +56,7 @@ class RadioRecord:
     sent_s: float
     src: int
     dst: int
-    frame_bytes: int
+    frame: bytes
     arrived_s: float | None
 
 
@@ -143,9 +143,9 @@ class SimRadioLink:
             if delay is not None:
                 heapq.heappush(self._in_flight, (now + delay, next(self._order), radio.address, frame))
             if intended:
-                self._count(sender.address, radio.address, size, now, delay, sender_xy, receiver_xy)
+                self._count(sender.address, radio.address, frame, now, delay, sender_xy, receiver_xy)
 
-    def _count(self, src, dst, size, now, delay, sender_xy, receiver_xy) -> None:
+    def _count(self, src, dst, frame, now, delay, sender_xy, receiver_xy) -> None:
         if delay is None:
             self.stats.frames_lost += 1
             if not self.channel.in_range(sender_xy, receiver_xy):
@@ -153,4 +153,4 @@ class SimRadioLink:
         else:
             self.stats.frames_delivered += 1
         if self.records is not None:
-            self.records.append(RadioRecord(now, src, dst, size, None if delay is None else now + delay))
+            self.records.append(RadioRecord(now, src, dst, frame, None if delay is None else now + delay))

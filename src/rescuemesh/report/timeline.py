@@ -1,0 +1,101 @@
+"""timeline.png: what each robot did and what crossed the radio, on one time axis.
+
+Owns: the timeline figure. Top: each robot's speed, with its key events marked (commands sent,
+Stop arrival, behaviours given up). Bottom: every frame each robot sent, by message type, delivered
+or lost, first send or resend. Must not know: how the run was scripted.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+from rescuemesh.protocol import FrameError, MessageType  # noqa: E402
+from rescuemesh.protocol.codec import decode_frame  # noqa: E402
+from rescuemesh.report.plots import COLOURS  # noqa: E402
+from rescuemesh.robot import robot_name  # noqa: E402
+
+#: Brain log entries worth a mark on the speed plot, and how to draw them.
+EVENT_MARKS = {
+    "command_sent": ("v", "command sent"),
+    "stopped": ("X", "Stop arrived"),
+    "command_given_up": ("D", "command given up"),
+    "follow_given_up": ("D", "command given up"),
+    "behaviour_ended": ("|", "behaviour ended"),
+}
+#: Rows of the radio panel: message kinds, bottom to top.
+KINDS = ("Heartbeat", "Confirm", "PoseUpdate", "Command")
+
+
+def _kind(msg_type: MessageType) -> str:
+    if msg_type == MessageType.HEARTBEAT:
+        return "Heartbeat"
+    if msg_type == MessageType.CONFIRM:
+        return "Confirm"
+    if msg_type == MessageType.POSE_UPDATE:
+        return "PoseUpdate"
+    return "Command"
+
+
+def plot_timeline(rt, path: Path, *, title: str = "") -> Path:
+    names = list(rt.trajectories)
+    fig, (ax_speed, ax_radio) = plt.subplots(2, 1, figsize=(11, 6.5), dpi=110, sharex=True,
+                                             gridspec_kw={"height_ratios": [1.0, 1.3]})
+    seen_labels: set[str] = set()
+    for name in names:
+        samples = rt.trajectories[name]
+        colour = COLOURS.get(name)
+        ax_speed.plot([s.time_s for s in samples], [s.speed for s in samples], color=colour, lw=1.4, label=name)
+        for event in rt.brains[name].log:
+            if event.kind not in EVENT_MARKS:
+                continue
+            marker, label = EVENT_MARKS[event.kind]
+            speed = min(samples, key=lambda s: abs(s.time_s - event.time_s)).speed
+            ax_speed.plot(event.time_s, speed, marker=marker, color=colour, ms=8, mec="k", mew=0.6, ls="none",
+                          label=None if label in seen_labels else label, zorder=5)
+            seen_labels.add(label)
+    ax_speed.set_ylabel("speed [m/s]")
+    ax_speed.set_ylim(bottom=-0.02)
+    ax_speed.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
+    ax_speed.grid(True, lw=0.3, alpha=0.5)
+    ax_speed.set_title(title, fontsize=11)
+
+    lanes = {(name, kind): i for i, (name, kind) in enumerate((n, k) for n in names for k in KINDS)}
+    styles = {  # (delivered, resend) -> marker style
+        (True, False): dict(marker="|", color="0.35", ms=9, label="delivered"),
+        (True, True): dict(marker="|", color="#ff7f0e", ms=11, mew=2, label="delivered (resend)"),
+        (False, False): dict(marker="x", color="#d62728", ms=6, label="lost"),
+        (False, True): dict(marker="x", color="#9467bd", ms=7, mew=2, label="lost (resend)"),
+    }
+    points: dict[tuple[bool, bool], tuple[list[float], list[float]]] = {k: ([], []) for k in styles}
+    for record in rt.link.records or []:
+        try:
+            header, _ = decode_frame(record.frame)
+        except FrameError:
+            continue
+        lane = lanes.get((robot_name(record.src), _kind(header.msg_type)))
+        if lane is None:
+            continue
+        key = (record.arrived_s is not None, header.attempt > 0)
+        points[key][0].append(record.sent_s)
+        points[key][1].append(lane)
+    for key, style in styles.items():
+        xs, ys = points[key]
+        if xs:
+            ax_radio.plot(xs, ys, ls="none", **style)
+    ax_radio.set_yticks(list(lanes.values()), [f"{name}  {kind}" for name, kind in lanes], fontsize=7)
+    for boundary in range(len(KINDS), len(lanes), len(KINDS)):
+        ax_radio.axhline(boundary - 0.5, color="0.6", lw=0.6)
+    ax_radio.set_ylim(-0.6, len(lanes) - 0.4)
+    ax_radio.set_xlabel("simulated time [s]")
+    ax_radio.set_title("frames sent, by sender and kind (one mark per intended receiver)", fontsize=9)
+    ax_radio.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
+    ax_radio.grid(True, axis="x", lw=0.3, alpha=0.5)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return path
