@@ -54,6 +54,23 @@ def _starts(items: list[str]):
     return starts
 
 
+def _check_seed(seed: int) -> None:
+    if not 0 <= seed < 2**63:
+        raise UsageError(f"--seed must be a whole number from 0 to 2**63 - 1, got {seed}")
+
+
+def _writable_folder(folder: Path) -> Path:
+    """Create `folder` (and check it takes files) before a run, not after it."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        probe = folder / ".rescuemesh-write-test"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as error:
+        raise UsageError(f"cannot write to output folder {str(folder)!r}: {error.strerror or error}") from None
+    return folder
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="rescuemesh", description="Robots that command each other over a short-range mesh.")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -83,6 +100,10 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "bench":
             from rescuemesh.bench import run_bench
 
+            _check_seed(args.seed)
+            _writable_folder(args.out.parent)
+            if args.out.is_dir():
+                raise UsageError(f"--out {str(args.out)!r} is a folder; give a file name such as out/bench.json")
             return run_bench(args.out, seed=args.seed)
         return _run(args)
     except UsageError as error:
@@ -109,12 +130,13 @@ def _run(args) -> int:
 
     if not (0.0 <= args.loss < 1.0):
         raise UsageError(f"--loss must be in [0, 1), got {args.loss}")
-    if args.time_limit is not None and not args.time_limit > 0:
-        raise UsageError(f"--time-limit must be > 0 s, got {args.time_limit}")
+    if args.time_limit is not None and not (0 < args.time_limit < math.inf):
+        raise UsageError(f"--time-limit must be a finite number of seconds > 0, got {args.time_limit}")
+    _check_seed(args.seed)
     goal = Pose2D(*_pose(args.goal, with_yaw=False)) if args.goal else None
     options = ScenarioOptions(seed=args.seed, loss=args.loss, radius_m=args.radius, starts=_starts(args.start),
                               goal=goal, time_limit_s=args.time_limit)
-    out = args.out or Path("out") / args.scenario
+    out = _writable_folder(args.out or Path("out") / args.scenario)
     progress = None if args.quiet else _Progress(args.scenario)
     try:
         outcome = run_scenario(args.scenario, options, map_path=args.map, out_dir=out, progress=progress)

@@ -32,6 +32,10 @@ def broken_map(tmp_path):
     (["run", "follow", "--goal", "1"], "X,Y"),
     (["run", "follow", "--goal", "-50,-50"], "goal"),
     (["run", "follow", "--time-limit", "-3"], "--time-limit"),
+    (["run", "follow", "--time-limit", "inf"], "--time-limit"),
+    (["run", "follow", "--seed", "-1"], "--seed"),
+    (["run", "follow", "--start", "robot_1=4.5,4.5,0", "--start", "robot_2=4.6,4.6,0"], "apart"),
+    (["bench", "--seed", "-1"], "--seed"),
     (["fly"], "invalid choice"),
     ([], "required"),
 ])
@@ -61,3 +65,19 @@ def test_scenarios_lists_the_three(capsys):
     out = capsys.readouterr().out
     for name in ("follow", "stop", "move-around"):
         assert name in out
+
+
+@pytest.mark.parametrize("where", ["a_file", "/proc/rescuemesh"])
+def test_an_output_folder_that_cannot_be_written_is_refused_before_running(where, tmp_path, capsys):
+    # this used to run the whole scenario and then print a FileExistsError / FileNotFoundError traceback
+    target = tmp_path / where if where == "a_file" else where
+    if where == "a_file":
+        target.write_text("not a folder")
+    assert main(["run", "follow", "--out", str(target)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "cannot write to output folder" in err
+
+
+def test_bench_refuses_a_folder_as_its_output_file(tmp_path, capsys):
+    assert main(["bench", "--out", str(tmp_path)]) == 2
+    assert "is a folder" in capsys.readouterr().err

@@ -31,7 +31,9 @@ def test_follow(tmp_path):
     assert 0.8 <= m["mean_following_distance_m"] <= 3.0
     assert result["robots"]["robot_1"]["final_region"] == result["robots"]["robot_2"]["final_region"] == "room_east"
     assert result["robots"]["robot_3"]["path_length_m"] < 0.05  # robot_3 stays put
-    assert result["protocol"]["retries"] == 0 and result["protocol"]["frames_lost"] == 0
+    # with no random loss, only robot_3 (beyond the 10 m range once the others are in room_east) misses frames
+    p = result["protocol"]
+    assert p["retries"] == 0 and p["frames_lost"] == p["frames_out_of_range"] > 0
 
 
 def test_stop(tmp_path):
@@ -53,8 +55,9 @@ def test_scenarios_succeed_at_20_percent_loss_thanks_to_retries(tmp_path, scenar
     code, result = run(tmp_path, scenario, "--loss", "0.2", "--seed", str(seed))
     assert_common(result, code)
     p = result["protocol"]
-    assert p["frames_lost"] > 0 and p["retries"] > 0
-    assert p["duplicates_suppressed"] >= 0
+    assert p["frames_lost"] > p["frames_out_of_range"]  # the channel really dropped frames
+    if scenario != "move-around":  # one command only there: it may well get through first time
+        assert p["retries"] > 0  # ... and resends made up for them
 
 
 def test_same_seed_same_result(tmp_path):
@@ -63,3 +66,26 @@ def test_same_seed_same_result(tmp_path):
     for r in (a, b):
         del r["wall_time_s"], r["real_time_factor"]
     assert a == b
+
+
+@pytest.mark.parametrize("scenario", ["stop", "move-around"])
+def test_a_command_given_up_and_asked_again_is_judged_on_the_confirmed_copy(tmp_path, scenario):
+    # this used to judge the automatic Stop that follows a given-up command (seed 9: three Confirms lost)
+    code, result = run(tmp_path, scenario, "--loss", "0.2", "--seed", "9")
+    assert any(e[2] == "command_given_up" for e in result["events"])
+    assert_common(result, code)
+
+
+def test_follow_to_a_goal_in_the_start_room(tmp_path):
+    # this used to fail "follower ends in hall" because it also demanded a doorway be passed
+    code, result = run(tmp_path, "follow", "--goal", "3,7")
+    assert code == 0 and result["metrics"]["follower_passed_doorway"] is False
+    assert result["robots"]["robot_2"]["final_region"] == "hall"
+
+
+def test_a_hopeless_link_ends_the_stop_scenario_early_as_a_failure(tmp_path):
+    # this used to run to the time limit (or forever with --time-limit inf) once the Follow was given up
+    code, result = run(tmp_path, "stop", "--loss", "0.95")
+    assert code == 1 and result["success"] is False
+    assert result["sim_time_s"] < 10 and result["metrics"]["stop_latency_s"] is None
+    assert result["protocol"]["commands_failed"] >= 3

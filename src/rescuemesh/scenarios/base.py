@@ -18,6 +18,8 @@ from rescuemesh.robot import RobotBrain, robot_address
 from rescuemesh.runtime import SimRuntime, TrajectorySample
 
 ROBOTS = ("robot_1", "robot_2", "robot_3")
+#: Two TurtleBot 2 footprints (0.177 m radius each) plus a little room.
+MIN_START_SEPARATION_M = 0.4
 
 
 class ScenarioError(ValueError):
@@ -95,13 +97,21 @@ class Scenario(abc.ABC):
     def starts(self) -> dict[str, Pose2D]:
         """Start poses: the map's defaults, overridden by --start."""
         starts = {name: pose for name, pose in self.map.starts.items() if name in ROBOTS}
-        starts.update(self.options.starts)
         for name in self.options.starts:
-            robot_address(name)  # ValueError for an unknown robot name
+            robot_address(name)  # ValueError for a malformed robot name
+            if name not in ROBOTS:
+                raise ScenarioError(f"unknown robot {name!r}: this scenario has {', '.join(ROBOTS)}")
+        starts.update(self.options.starts)
         missing = [name for name in ROBOTS if name not in starts]
         if missing:
             raise ScenarioError(f"map {self.map.name!r} has no start pose for {', '.join(missing)}: "
                                 f"give --start NAME=X,Y,YAW")
+        placed = list(starts.items())
+        for i, (name, pose) in enumerate(placed):
+            for other, other_pose in placed[i + 1:]:
+                if pose.distance_to(other_pose) < MIN_START_SEPARATION_M:
+                    raise ScenarioError(f"{name} and {other} start {pose.distance_to(other_pose):.2f} m apart: "
+                                        f"robots need at least {MIN_START_SEPARATION_M} m")
         for name, pose in starts.items():
             if self.map.grid.is_occupied(pose.x, pose.y):
                 raise ScenarioError(f"start of {name} ({pose.x:.2f}, {pose.y:.2f}) is inside an obstacle "

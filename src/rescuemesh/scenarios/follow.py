@@ -76,20 +76,22 @@ class FollowScenario(Scenario):
         if goal_region is not None and self.map.regions:
             start = rt.trajectories[self.follower][0].pose
             start_region = self.map.region_of(start.x, start.y)
-            passed_doorway = start_region != goal_region and self.map.region_of(follower_end.x, follower_end.y) == goal_region
+            follower_region = self.map.region_of(follower_end.x, follower_end.y)
+            passed_doorway = start_region != goal_region and follower_region == goal_region
             criteria += [(f"leader ends in {goal_region}", self.map.region_of(leader_end.x, leader_end.y) == goal_region),
-                         (f"follower ends in {goal_region}", passed_doorway)]
+                         (f"follower ends in {goal_region}", follower_region == goal_region)]
         else:
             gap = leader_end.distance_to(follower_end)
             criteria.append((f"follower ends within {FOLLOWER_END_DISTANCE_M} m of the leader ({gap:.2f} m)",
                              gap <= FOLLOWER_END_DISTANCE_M))
         criteria.append(no_collisions(rt))
-        t0 = self.accepted_s or 0.0
-        t1 = self.arrived_s or rt.time
+        following = None
+        if self.accepted_s is not None:
+            following = _round(mean_distance(rt.trajectories[self.leader], rt.trajectories[self.follower],
+                                             self.accepted_s, self.arrived_s or rt.time))
         metrics = {
             "follower_passed_doorway": passed_doorway,
-            "mean_following_distance_m": _round(mean_distance(rt.trajectories[self.leader],
-                                                              rt.trajectories[self.follower], t0, t1)),
+            "mean_following_distance_m": following,
             "final_gap_m": round(leader_end.distance_to(follower_end), 3),
             "follow_accepted_s": self.accepted_s,
             "leader_arrived_s": self.arrived_s,

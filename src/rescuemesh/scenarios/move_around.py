@@ -43,6 +43,7 @@ class MoveAroundScenario(Scenario):
         super().__init__(options, map_model)
         self._request: CommandRequest | None = None
         self.result: ResultCode | None = None
+        self.accepted_s: float | None = None
         self.center_pose = None
 
     def tick(self, rt: SimRuntime) -> None:
@@ -53,10 +54,18 @@ class MoveAroundScenario(Scenario):
                                            lambda peer, now: brain.command_move_around(peer, self.options.radius_m, now))
         if self.result is None:
             self.result = self._request.poll(rt.time)
+            if self.result is not None:
+                self.accepted_s = rt.time
 
     def _ended(self, rt: SimRuntime):
+        """The end of the circle the confirmed command started (not of a copy given up and stopped)."""
+        if self.accepted_s is None:
+            return None
+        started = [e.time_s for e in rt.brain(self.mover).log
+                   if e.kind == "behaviour_started" and e.detail == "move-around" and e.time_s <= self.accepted_s]
         for event in rt.brain(self.mover).log:
-            if event.kind == "behaviour_ended" and event.detail.startswith("move-around:"):
+            if event.kind == "behaviour_ended" and event.detail.startswith("move-around:") \
+                    and started and event.time_s >= started[-1]:
                 return event
         return None
 

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from rescuemesh.maps import MapModel, load_map, office_map_path
-from rescuemesh.report import build_result, plot_trajectories, write_result
+from rescuemesh.report import build_result, plot_timeline, plot_trajectories, write_result
 from rescuemesh.runtime import SimConfig, SimRuntime
 from rescuemesh.scenarios import ScenarioOptions, Verdict, get_scenario
 
@@ -57,6 +57,7 @@ def run_scenario(name: str, options: ScenarioOptions, *, map_path: Path | None =
         files.append(write_result(result, out_dir / "result.json"))
         files.append(plot_trajectories(rt, map_model, out_dir / "trajectory.png",
                                        title=_title(scenario, verdict), metrics=verdict.metrics))
+        files.append(plot_timeline(rt, out_dir / "timeline.png", title=_title(scenario, verdict)))
     return RunOutcome(result, verdict, rt, files)
 
 

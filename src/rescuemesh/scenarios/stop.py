@@ -44,11 +44,18 @@ class StopScenario(FollowScenario):
             self.stop_result = self._stop.poll(rt.time)
 
     def finished(self, rt: SimRuntime) -> bool:
+        if super().finished(rt) and self.accepted_s is None:  # the Follow was never confirmed
+            return True
+        if self._stop is not None and self._stop.given_up:
+            return True
         return self.stop_sent_s is not None and rt.time >= self.stop_sent_s + WATCH_S and self.stop_result is not None
 
     def stop_arrival_s(self, rt: SimRuntime) -> float | None:
+        if self.stop_sent_s is None:
+            return None
+        # Not an earlier automatic Stop (sent when a Follow was given up): the one this scenario sent.
         for event in rt.brain(self.follower).log:
-            if event.kind == "stopped":
+            if event.kind == "stopped" and event.time_s >= self.stop_sent_s:
                 return event.time_s
         return None
 
