@@ -3,7 +3,6 @@
 PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
-export MUJOCO_GL ?= egl
 
 .PHONY: demo test bench clean
 
