@@ -101,15 +101,20 @@ def pull_pose(data: bytes, offset: int) -> tuple[Pose, int]:
     return _make_pose(x / 100.0, y / 100.0, z / 100.0, yaw * YAW_UNIT_RAD), offset + POSE_BYTES
 
 
+def _to_units(value: float, per_unit: float, lo: int, hi: int, what: str, span: str) -> int:
+    """`value` scaled by `per_unit` and rounded to nearest; EncodeError unless finite and in lo..hi."""
+    try:
+        units = round(value * per_unit)
+    except (ValueError, OverflowError) as exc:
+        raise EncodeError(f"{what} {value!r} is not finite") from exc
+    if not lo <= units <= hi:
+        raise EncodeError(f"{what} {value!r} is out of range {span}")
+    return units
+
+
 def push_period(buf: bytearray, period_s: float) -> None:
     """Append a repeat period in 0.1 s units (uint8, 0..25.5 s), rounded to nearest."""
-    try:
-        value = round(period_s * 10.0)
-    except (ValueError, OverflowError) as exc:
-        raise EncodeError(f"period {period_s!r} s is not finite") from exc
-    if not 0 <= value <= 255:
-        raise EncodeError(f"period {period_s!r} s is out of range 0..25.5 s")
-    buf += _U8.pack(value)
+    buf += _U8.pack(_to_units(period_s, 10.0, 0, 255, "period (s)", "0..25.5 s"))
 
 
 def pull_period(data: bytes, offset: int) -> tuple[float, int]:
@@ -118,13 +123,7 @@ def pull_period(data: bytes, offset: int) -> tuple[float, int]:
 
 def push_radius(buf: bytearray, radius_m: float) -> None:
     """Append a radius in cm (uint16, 0.01..655.35 m), rounded to nearest; 0 cm is not a radius."""
-    try:
-        value = round(radius_m * 100.0)
-    except (ValueError, OverflowError) as exc:
-        raise EncodeError(f"radius {radius_m!r} m is not finite") from exc
-    if not 1 <= value <= 0xFFFF:
-        raise EncodeError(f"radius {radius_m!r} m is out of range 0.01..655.35 m")
-    buf += _U16.pack(value)
+    buf += _U16.pack(_to_units(radius_m, 100.0, 1, 0xFFFF, "radius (m)", "0.01..655.35 m"))
 
 
 def pull_radius(data: bytes, offset: int) -> tuple[float, int]:
