@@ -40,6 +40,10 @@ def plot_trajectories(rt, map_model, path: Path, *, title: str = "", metrics: di
     if "goal" in metrics and metrics["goal"]:
         gx, gy = metrics["goal"]
         ax.plot(gx, gy, marker="*", ms=16, color="gold", mec="k", zorder=6, ls="none", label="leader goal")
+    if metrics.get("stop_position"):
+        sx, sy = metrics["stop_position"]
+        ax.plot(sx, sy, marker="X", ms=12, color="k", mfc="#ff7f0e", ls="none", zorder=7,
+                label=f"Stop arrived (t = {metrics.get('stop_arrived_s')} s)")
     if metrics.get("center") and metrics.get("radius_m"):
         cx, cy = metrics["center"]
         ax.add_patch(Circle((cx, cy), metrics["radius_m"], fill=False, ls="--", lw=1.2, ec="0.3", zorder=3,

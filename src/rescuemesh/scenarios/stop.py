@@ -86,8 +86,16 @@ class StopScenario(FollowScenario):
             "stop_latency_s": latency,
             "drift_after_stop_m": drift,
             "follower_speed_at_stop_mps": _speed_at(samples, arrival),
+            "stop_position": _position_at(samples, arrival),
         }
         return Verdict(all(ok for _, ok in criteria), criteria, metrics)
+
+
+def _position_at(samples, t):
+    if t is None:
+        return None
+    pose = next((s.pose for s in samples if s.time_s >= t), samples[-1].pose)
+    return [round(pose.x, 3), round(pose.y, 3)]
 
 
 def _speed_at(samples, t):
