@@ -181,7 +181,10 @@ def _summary(outcome) -> None:
     for check in r["criteria"]:
         print(f"  [{'x' if check['ok'] else ' '}] {check['check']}")
     metrics = ", ".join(f"{k}={v}" for k, v in r["metrics"].items() if not isinstance(v, (list, dict)))
+    skipped = r["metrics"].get("waypoints_skipped")
     print(f"  metrics: {metrics}")
+    if skipped:
+        print(f"  waypoints skipped (inside obstacles): {', '.join(skipped)}")
     print(f"  protocol: {p['frames_sent']} frames sent ({p['bytes_sent']} B, largest {p['max_frame_bytes']} B), "
           f"{p['frames_lost']} lost ({p['frames_out_of_range']} out of range), {p['retries']} retries, {p['confirms']} confirms, "
           f"{p['commands_failed']} commands failed")

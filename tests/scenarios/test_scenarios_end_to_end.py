@@ -1,6 +1,7 @@
 """Each scenario end to end at full speed, judged on its result.json (as a user would read it)."""
 
 import json
+import math
 
 import pytest
 
@@ -48,6 +49,21 @@ def test_move_around(tmp_path):
     assert_common(result, code)
     assert result["metrics"]["radius_rms_error_m"] <= 0.15
     assert result["metrics"]["angle_covered_deg"] >= 330
+    waypoints = result["metrics"]["waypoints"]
+    assert len(waypoints) == 21 and len({w["index"] for w in waypoints}) == 20  # closed: first one again
+    for w in waypoints:
+        qx, qy, qz, qw = w["quaternion_xyzw"]
+        yaw_of_quaternion = math.atan2(2 * qw * qz, 1 - 2 * qz * qz)
+        assert qx == qy == 0 and abs(math.remainder(yaw_of_quaternion - w["yaw"], 2 * math.pi)) < 1e-3
+
+
+def test_move_around_through_a_wall_skips_and_reports_waypoints_and_fails_honestly(tmp_path):
+    # a 3.2 m circle around robot_1 crosses the hall's east wall
+    code, result = run(tmp_path, "move-around", "--radius", "3.2")
+    skipped = sorted(int(i) for i in result["metrics"]["waypoints_skipped"])
+    assert skipped == [1, 2, 18, 19]
+    assert sorted(w["index"] for w in result["metrics"]["waypoints"] if w["skipped"]) == skipped
+    assert code == 1 and result["metrics"]["radius_rms_error_m"] > 0.15  # the detour is not a circle
 
 
 @pytest.mark.parametrize("scenario, seed", [("follow", 1), ("stop", 2), ("move-around", 3)])

@@ -48,6 +48,13 @@ def plot_trajectories(rt, map_model, path: Path, *, title: str = "", metrics: di
         cx, cy = metrics["center"]
         ax.add_patch(Circle((cx, cy), metrics["radius_m"], fill=False, ls="--", lw=1.2, ec="0.3", zorder=3,
                             label=f"MoveAround r = {metrics['radius_m']} m"))
+        visited = [w for w in metrics.get("waypoints", []) if not w["skipped"]]
+        if visited:
+            ax.plot([w["x"] for w in visited], [w["y"] for w in visited], "D", ms=4, color="0.25", zorder=3.5,
+                    ls="none", label=f"waypoints ({len({w['index'] for w in visited})})")
+        skipped = [w["index"] for w in metrics.get("waypoints", []) if w["skipped"]]
+        if skipped:
+            ax.plot([], [], ls="none", label=f"skipped (in obstacles): {', '.join(map(str, skipped))}")
     for index, (name, samples) in enumerate(rt.trajectories.items()):
         colour = COLOURS.get(name, None)
         xy = np.array([[s.pose.x, s.pose.y] for s in samples])

@@ -11,6 +11,7 @@ import math
 import numpy as np
 
 from rescuemesh.protocol import ResultCode
+from rescuemesh.robot.behaviours import MoveAroundBehaviour
 from rescuemesh.runtime import SimRuntime
 from rescuemesh.scenarios.base import CommandRequest, Scenario, ScenarioError, Verdict, no_collisions
 
@@ -45,6 +46,7 @@ class MoveAroundScenario(Scenario):
         self.result: ResultCode | None = None
         self.accepted_s: float | None = None
         self.center_pose = None
+        self.waypoints: list[dict] = []
 
     def tick(self, rt: SimRuntime) -> None:
         brain = rt.brain(self.center)
@@ -56,6 +58,9 @@ class MoveAroundScenario(Scenario):
             self.result = self._request.poll(rt.time)
             if self.result is not None:
                 self.accepted_s = rt.time
+        running = rt.brain(self.mover).running
+        if not self.waypoints and running is not None and isinstance(running.behaviour, MoveAroundBehaviour):
+            self.waypoints = _waypoint_table(running.behaviour)
 
     def _ended(self, rt: SimRuntime):
         """The end of the circle the confirmed command started (not of a copy given up and stopped)."""
@@ -104,5 +109,16 @@ class MoveAroundScenario(Scenario):
             "angle_covered_deg": None if angle is None else round(angle, 1),
             "waypoints_skipped": skipped[0].split(", ") if skipped else [],
             "circle_time_s": None if not on.size else round(end_s - samples[on[0]].time_s, 2),
+            "waypoints": self.waypoints,
         }
         return Verdict(all(ok for _, ok in criteria), criteria, metrics)
+
+
+def _waypoint_table(behaviour: MoveAroundBehaviour) -> list[dict]:
+    """The circle's waypoints in visiting order, each with its tangent heading as a quaternion."""
+    skipped = {w.index for w in behaviour.skipped}
+    rows = [{"index": w.index, "x": round(w.pose.x, 3), "y": round(w.pose.y, 3), "yaw": round(w.pose.yaw, 4),
+             "quaternion_xyzw": [round(q, 4) for q in w.quaternion], "skipped": False}
+            for w in behaviour.waypoints]
+    rows += [{"index": i, "skipped": True} for i in sorted(skipped)]
+    return rows
