@@ -38,6 +38,9 @@ def run_scenario(name: str, options: ScenarioOptions, *, map_path: Path | None =
     wall_start = time.perf_counter()
     rt = SimRuntime(map_model, scenario.starts(), config)
     next_report = 0.0
+    if progress:
+        progress(rt.time, scenario.limit_s)
+        next_report = PROGRESS_PERIOD_S
     while rt.time < scenario.limit_s:
         rt.step(scenario.tick)
         if progress and rt.time >= next_report:
