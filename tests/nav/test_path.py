@@ -1,7 +1,9 @@
 import numpy as np
 import pytest
 
-from rescuemesh.nav.path import Path, Polyline, cumulative_lengths, point_at, project, slice_path
+from reference_polyline import point_at, project, slice_path
+
+from rescuemesh.nav.path import Path, Polyline, cumulative_lengths
 
 L_SHAPE = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0]])
 
@@ -14,35 +16,37 @@ def test_path_length_and_end():
 
 
 def test_project_finds_arc_length_and_distance():
-    s, d = project(L_SHAPE, np.array([1.0, 0.3]))
+    line = Polyline.from_points(L_SHAPE)
+    s, d = line.project(1.0, 0.3)
     assert s == pytest.approx(1.0) and d == pytest.approx(0.3)
-    s, d = project(L_SHAPE, np.array([2.4, 1.5]))
+    s, d = line.project(2.4, 1.5)
     assert s == pytest.approx(3.5) and d == pytest.approx(0.4)
 
 
 def test_project_respects_the_search_window():
     # a U-turn: the way back passes near the start; a window keeps the robot on its leg
-    u_turn = np.array([[0.0, 0.0], [3.0, 0.0], [3.0, 0.4], [0.0, 0.4]])
-    s, _ = project(u_turn, np.array([0.5, 0.25]), s_max=1.0)
+    u_turn = Polyline.from_points(np.array([[0.0, 0.0], [3.0, 0.0], [3.0, 0.4], [0.0, 0.4]]))
+    s, _ = u_turn.project(0.5, 0.25, s_max=1.0)
     assert s == pytest.approx(0.5)
-    s, _ = project(u_turn, np.array([0.5, 0.25]), s_min=3.0)
+    s, _ = u_turn.project(0.5, 0.25, s_min=3.0)
     assert s == pytest.approx(5.9)
 
 
 def test_point_at_and_slice():
-    np.testing.assert_allclose(point_at(L_SHAPE, 3.0), (2.0, 1.0))
-    np.testing.assert_allclose(point_at(L_SHAPE, 10.0), (2.0, 2.0))
-    part = slice_path(L_SHAPE, 1.0, 3.0)
-    np.testing.assert_allclose(part, [[1.0, 0.0], [2.0, 0.0], [2.0, 1.0]])
-    assert len(slice_path(L_SHAPE, 4.0, 4.0)) == 1
-    assert len(slice_path(L_SHAPE, 1.0, 0.5)) == 1
+    line = Polyline.from_points(L_SHAPE)
+    np.testing.assert_allclose(line.point_at(3.0), (2.0, 1.0))
+    np.testing.assert_allclose(line.point_at(10.0), (2.0, 2.0))
+    part = line.slice(1.0, 3.0)
+    np.testing.assert_allclose(part.to_array(), [[1.0, 0.0], [2.0, 0.0], [2.0, 1.0]])
+    assert len(line.slice(4.0, 4.0)) == 1
+    assert len(line.slice(1.0, 0.5)) == 1
 
 
 U_TURN = np.array([[0.0, 0.0], [3.0, 0.0], [3.0, 0.4], [3.0, 0.4], [0.0, 0.4]])  # with a zero-length segment
 
 
 @pytest.mark.parametrize("points", [L_SHAPE, U_TURN, L_SHAPE[:1]], ids=["L", "U-turn", "one-point"])
-def test_polyline_agrees_with_the_array_helpers(points):
+def test_polyline_agrees_with_the_numpy_reference(points):
     line = Polyline.from_points(points)
     assert line.length == pytest.approx(cumulative_lengths(points)[-1])
     for xy in [(1.0, 0.3), (2.4, 1.5), (0.5, 0.25), (3.2, 0.45), (-1.0, -1.0)]:

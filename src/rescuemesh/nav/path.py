@@ -1,13 +1,13 @@
 """Planned paths as map-frame polylines, and the geometry the planner, controller and action share.
 
-Owns: `Path`, `Polyline` and pure polyline helpers (projection, arc length, slicing). Must not know
-how a path was planned or how it is followed; numpy and plain math only.
+Owns: `Path`, `Polyline` and arc lengths. Must not know how a path was planned or how it is
+followed; numpy and plain math only.
 
-Two flavours of the same geometry: the numpy functions work on whole (N, 2) arrays; `Polyline`
-answers the controller's per-tick questions (project the robot, a point at an arc length, the
-part ahead) in plain Python floats over the few segments concerned, from per-path data computed
-once. At 20 Hz on paths of a few dozen vertices, numpy's per-call overhead on tiny arrays would
-dominate. Both follow the same formulas (numpy's `interp` included), so they agree to rounding.
+`Polyline` answers the controller's per-tick questions (project the robot, a point at an arc
+length, the part ahead) in plain Python floats over the few segments concerned, from per-path data
+computed once: at 20 Hz on paths of a few dozen vertices, numpy's per-call overhead on tiny arrays
+would dominate. tests/nav/reference_polyline.py holds the same geometry over whole numpy arrays,
+and the tests check that the two agree to rounding.
 """
 
 from __future__ import annotations
@@ -61,64 +61,12 @@ def cumulative_lengths(points: np.ndarray) -> np.ndarray:
     return np.concatenate(([0.0], np.cumsum(seg)))
 
 
-def project(points: np.ndarray, xy: np.ndarray, *, s_min: float = 0.0, s_max: float = np.inf) -> tuple[float, float]:
-    """Project `xy` onto the polyline: (arc length s in m of the nearest point, distance in m to it).
-
-    Only segments overlapping the arc-length window [s_min, s_max] are searched, so a path that
-    passes near itself twice is not short-cut (Nav2's `max_robot_pose_search_dist`).
-    """
-    xy = np.asarray(xy, dtype=float)
-    if len(points) == 1:
-        return 0.0, float(np.hypot(*(xy - points[0])))
-    cum = cumulative_lengths(points)
-    a, b = points[:-1], points[1:]
-    d = b - a
-    seg_len2 = np.einsum("ij,ij->i", d, d)
-    t = np.einsum("ij,ij->i", xy - a, d) / np.where(seg_len2 > 0.0, seg_len2, 1.0)
-    t = np.clip(t, 0.0, 1.0)
-    s_seg = cum[:-1] + t * np.sqrt(seg_len2)
-    lo, hi = s_min, max(s_min, s_max)
-    # restrict to the window, clamping each segment's candidate into it
-    s_cand = np.clip(s_seg, np.maximum(cum[:-1], lo), np.minimum(cum[1:], hi))
-    usable = cum[1:] >= lo
-    usable &= cum[:-1] <= hi
-    if not usable.any():
-        usable[-1] = True
-    near = point_at(points, s_cand, cum=cum)
-    dist = np.hypot(*(near - xy).T)
-    dist = np.where(usable, dist, np.inf)
-    i = int(np.argmin(dist))
-    return float(s_cand[i]), float(dist[i])
-
-
-def point_at(points: np.ndarray, s, *, cum: np.ndarray | None = None) -> np.ndarray:
-    """Point(s) (x, y) in m at arc length(s) `s` along the polyline, clamped to its ends."""
-    cum = cumulative_lengths(points) if cum is None else cum
-    s_arr = np.clip(np.asarray(s, dtype=float), 0.0, cum[-1])
-    x = np.interp(s_arr, cum, points[:, 0])
-    y = np.interp(s_arr, cum, points[:, 1])
-    return np.stack([x, y], axis=-1)
-
-
-def slice_path(points: np.ndarray, s_start: float = 0.0, s_end: float = np.inf) -> np.ndarray:
-    """The part of the polyline between arc lengths `s_start` and `s_end` in m, as an (M, 2) array, M >= 1."""
-    cum = cumulative_lengths(points)
-    s0 = float(np.clip(s_start, 0.0, cum[-1]))
-    s1 = float(np.clip(s_end, s0, cum[-1]))
-    inner = points[(cum > s0) & (cum < s1)]
-    ends = point_at(points, [s0, s1], cum=cum)
-    out = np.vstack([ends[:1], inner, ends[1:]])
-    if len(out) == 2 and s1 - s0 <= 1e-9:
-        out = out[:1]
-    return out
-
-
 class Polyline:
     """A polyline in plain Python floats with its per-vertex arc lengths, for per-tick queries.
 
     `xs`, `ys`: vertex coordinates in m (N >= 1); `cum`: arc length in m at each vertex; `length`:
-    the total. `project`, `point_at` and `slice` behave as the numpy functions of the same name but
-    only visit the segments in the requested arc-length window (found by bisection).
+    the total. `project`, `point_at` and `slice` only visit the segments in the requested arc-length
+    window (found by bisection).
     """
 
     __slots__ = ("xs", "ys", "cum", "length")
@@ -161,7 +109,9 @@ class Polyline:
         return (xs[j + 1] - xs[j]) / h * (s - cum[j]) + xs[j], (ys[j + 1] - ys[j]) / h * (s - cum[j]) + ys[j]
 
     def project(self, x: float, y: float, *, s_min: float = 0.0, s_max: float = math.inf) -> tuple[float, float]:
-        """`project` of the point (x, y) m: (arc length s in m, distance in m), within [s_min, s_max]."""
+        """Project the point (x, y) m onto the polyline: (arc length s in m of the nearest point,
+        distance in m to it), searching only segments overlapping [s_min, s_max], so a path that
+        passes near itself twice is not short-cut (Nav2's `max_robot_pose_search_dist`)."""
         xs, ys, cum = self.xs, self.ys, self.cum
         n = len(xs)
         if n == 1:
@@ -186,7 +136,7 @@ class Polyline:
         return best_s, best_d
 
     def slice(self, s_start: float = 0.0, s_end: float = math.inf) -> "Polyline":
-        """`slice_path`: the part between arc lengths `s_start` and `s_end` m, as a new Polyline (N >= 1)."""
+        """The part between arc lengths `s_start` and `s_end` m, as a new Polyline (N >= 1)."""
         cum = self.cum
         s0 = min(max(s_start, 0.0), self.length)
         s1 = min(max(s_end, s0), self.length)
