@@ -4,7 +4,7 @@ Owns: RobotBrain, behaviours (follow, move-around, navigate), robot naming. Must
 simulator (it talks to a `rescuemesh.body.Body`), the transport, the clock (it is handed `now`).
 """
 
-from rescuemesh.robot.brain import BrainConfig, BrainEvent, RobotBrain
+from rescuemesh.robot.brain import BrainConfig, BrainEvent, FinishedBehaviour, RobotBrain
 from rescuemesh.robot.naming import robot_address, robot_name
 
-__all__ = ["BrainConfig", "BrainEvent", "RobotBrain", "robot_address", "robot_name"]
+__all__ = ["BrainConfig", "BrainEvent", "FinishedBehaviour", "RobotBrain", "robot_address", "robot_name"]

@@ -52,7 +52,6 @@ class BrainConfig:
     heartbeat_period_s: float = 1.0
     partner_timeout_s: float = 3.0  # follower stops when its leader is silent this long
     move_around_waypoints: int = 20
-    stream_max_failed_updates: int = 3  # = the frame retry count, applied to the Follow stream
 
 
 @dataclass(frozen=True, slots=True)
@@ -89,9 +88,21 @@ class _PoseStream:
     outstanding: set[int] = field(default_factory=set)
 
 
+@dataclass(frozen=True, slots=True)
+class FinishedBehaviour:
+    """A behaviour that ran: its name, when it ran (s), its final result and why."""
+
+    name: str
+    started_s: float
+    ended_s: float
+    result: ResultCode
+    reason: str
+
+
 @dataclass
 class _Running:
     behaviour: Behaviour
+    started_s: float
     commander: int | None = None  # address of the robot whose command started it; None: own mission
     seq: int | None = None
     msg_type: MessageType | None = None
@@ -125,6 +136,7 @@ class RobotBrain:
         self.outgoing: dict[int, OutgoingCommand] = {}
         self.streams: dict[int, _PoseStream] = {}
         self.running: _Running | None = None
+        self.finished: list[FinishedBehaviour] = []
         self.commands_failed = 0
         self.frames_rejected = 0
         self._next_heartbeat_s = 0.0
@@ -134,24 +146,20 @@ class RobotBrain:
 
     def navigate_to(self, goal: Pose2D, now: float) -> None:
         """Drive to `goal` on this robot's own account (replaces the running behaviour)."""
-        self._start(_Running(NavigateBehaviour(self.nav, goal, now)), now)
+        self._start(_Running(NavigateBehaviour(self.nav, goal, now), now), now)
 
     def command_follow(self, peer: int, now: float) -> int:
         """Send Follow to `peer`; once it is ACCEPTED, stream this robot's pose to it."""
-        return self._send(peer, Follow(to_wire_pose(self.body.pose())), now)
+        return self.send(peer, Follow(to_wire_pose(self.body.pose())), now)
 
     def command_stop(self, peer: int, now: float) -> int:
         """Send Stop to `peer`, and end any pose stream to it."""
         self.streams.pop(peer, None)
-        return self._send(peer, Stop(), now)
+        return self.send(peer, Stop(), now)
 
     def command_move_around(self, peer: int, radius_m: float, now: float) -> int:
         """Send MoveAround: `peer` circles this robot's present position at `radius_m`."""
-        return self._send(peer, MoveAround(to_wire_pose(self.body.pose()), radius_m), now)
-
-    def send(self, peer: int, command, now: float) -> int:
-        """Send any command message (its outcome is tracked in `outgoing`)."""
-        return self._send(peer, command, now)
+        return self.send(peer, MoveAround(to_wire_pose(self.body.pose()), radius_m), now)
 
     @property
     def behaviour(self) -> str:
@@ -220,7 +228,7 @@ class RobotBrain:
         behaviour = FollowBehaviour(self.nav, event.src, from_wire_pose(event.command.frame), now,
                                     distance_m=self.config.follow_distance_m,
                                     partner_timeout_s=self.config.partner_timeout_s)
-        self._start(_Running(behaviour, event.src, event.seq, MessageType.FOLLOW), now)
+        self._start(_Running(behaviour, now, event.src, event.seq, event.command.TYPE), now)
         self._confirm(event, ResultCode.ACCEPTED, now)
 
     def _on_move_around(self, event: CommandReceived, now: float) -> None:
@@ -237,7 +245,7 @@ class RobotBrain:
             self._note(now, "command_denied", "MoveAround: every waypoint is inside an obstacle")
             return
         behaviour = MoveAroundBehaviour(self.nav, free, skipped, now)
-        self._start(_Running(behaviour, event.src, event.seq, MessageType.MOVE_AROUND), now)
+        self._start(_Running(behaviour, now, event.src, event.seq, event.command.TYPE), now)
         self._confirm(event, ResultCode.ACCEPTED, now, progress=0)
 
     def _on_pose_update(self, event: PoseUpdateReceived, now: float) -> None:
@@ -282,7 +290,7 @@ class RobotBrain:
                 return
             stream.outstanding.discard(event.seq)
             stream.failed_in_a_row += 1
-            if stream.failed_in_a_row >= self.config.stream_max_failed_updates:
+            if stream.failed_in_a_row >= self.endpoint.config.reliability.max_sends:  # the frame rule, per update
                 del self.streams[event.dst]
                 self.commands_failed += 1
                 self._note(now, "follow_given_up",
@@ -304,9 +312,10 @@ class RobotBrain:
         return any(c.kind == "Stop" and c.peer == peer and c.sent_s >= since_s
                    for c in self.outgoing.values())
 
-    # ----- sending -----
+    # ----- sending (send is public, with the command_* helpers above) -----
 
-    def _send(self, peer: int, command, now: float) -> int:
+    def send(self, peer: int, command, now: float) -> int:
+        """Send any command message (its outcome is tracked in `outgoing`)."""
         seq = self.endpoint.send_command(peer, command, now)
         kind = type(command).__name__
         self.outgoing[seq] = OutgoingCommand(seq, peer, kind, now)
@@ -333,6 +342,7 @@ class RobotBrain:
         if running is None:
             return
         running.behaviour.halt(now)
+        self.finished.append(FinishedBehaviour(running.behaviour.name, running.started_s, now, result, reason))
         self._note(now, "behaviour_ended", f"{running.behaviour.name}: {result.name} {reason}".rstrip())
         if running.commander is not None and running.seq is not None:
             # Report the final result to the commander (best effort: an unsolicited Confirm).

@@ -42,7 +42,7 @@ class FollowScenario(Scenario):
         self.accepted_s: float | None = None
         self.arrived_s: float | None = None
         self.settled_s: float | None = None
-        self._leader_result: str | None = None
+        self._leader_result: ResultCode | None = None
 
     def tick(self, rt: SimRuntime) -> None:
         now = rt.time
@@ -71,7 +71,7 @@ class FollowScenario(Scenario):
         goal = self.goal()
         goal_region = self.map.region_of(goal.x, goal.y)
         criteria = [("Follow confirmed ACCEPTED", self.accepted_s is not None),
-                    ("leader reached its goal", self._leader_result == "DONE")]
+                    ("leader reached its goal", self._leader_result == ResultCode.DONE)]
         passed_doorway = None
         if goal_region is not None and self.map.regions:
             start = rt.trajectories[self.follower][0].pose
@@ -101,11 +101,9 @@ class FollowScenario(Scenario):
         return Verdict(all(ok for _, ok in criteria), criteria, metrics)
 
 
-def _last_result(brain, behaviour: str) -> str | None:
-    for event in reversed(brain.log):
-        if event.kind == "behaviour_ended" and event.detail.startswith(behaviour + ":"):
-            return event.detail.split()[1]
-    return None
+def _last_result(brain, behaviour: str) -> ResultCode | None:
+    """The final result of the last `behaviour` the brain finished, or None."""
+    return next((f.result for f in reversed(brain.finished) if f.name == behaviour), None)
 
 
 def _round(value: float, digits: int = 3):

@@ -66,13 +66,12 @@ class MoveAroundScenario(Scenario):
         """The end of the circle the confirmed command started (not of a copy given up and stopped)."""
         if self.accepted_s is None:
             return None
-        started = [e.time_s for e in rt.brain(self.mover).log
-                   if e.kind == "behaviour_started" and e.detail == "move-around" and e.time_s <= self.accepted_s]
-        for event in rt.brain(self.mover).log:
-            if event.kind == "behaviour_ended" and event.detail.startswith("move-around:") \
-                    and started and event.time_s >= started[-1]:
-                return event
-        return None
+        brain = rt.brain(self.mover)
+        starts = [f.started_s for f in brain.finished if f.name == "move-around"]
+        if brain.running is not None and brain.running.behaviour.name == "move-around":
+            starts.append(brain.running.started_s)
+        confirmed = max((t for t in starts if t <= self.accepted_s), default=None)
+        return next((f for f in brain.finished if f.name == "move-around" and f.started_s == confirmed), None)
 
     def finished(self, rt: SimRuntime) -> bool:
         if self.result is not None and self.result != ResultCode.ACCEPTED:
@@ -83,7 +82,7 @@ class MoveAroundScenario(Scenario):
         r = self.options.radius_m
         c = self.center_pose
         ended = self._ended(rt)
-        end_s = ended.time_s if ended else rt.time
+        end_s = ended.ended_s if ended else rt.time
         samples = [s for s in rt.trajectories[self.mover] if s.time_s <= end_s]
         xy = np.array([[s.pose.x, s.pose.y] for s in samples])
         dist = np.hypot(xy[:, 0] - c.x, xy[:, 1] - c.y)
@@ -97,7 +96,7 @@ class MoveAroundScenario(Scenario):
         skipped = [e.detail for e in rt.brain(self.mover).log if e.kind == "waypoints_skipped"]
         criteria = [
             ("MoveAround confirmed ACCEPTED", self.result == ResultCode.ACCEPTED),
-            ("robot_2 finished the circle", ended is not None and "DONE" in ended.detail),
+            ("robot_2 finished the circle", ended is not None and ended.result == ResultCode.DONE),
             (f"RMS radius error <= {MAX_RMS_ERROR_M} m", rms is not None and rms <= MAX_RMS_ERROR_M),
             (f"at least {MIN_ANGLE_DEG:.0f} degrees covered anticlockwise", angle is not None and angle >= MIN_ANGLE_DEG),
             no_collisions(rt),
