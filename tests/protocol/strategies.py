@@ -9,6 +9,8 @@ from rescuemesh.protocol import (
     CONFIRMABLE_TYPES,
     MAX_FORWARD_MESSAGE_BYTES,
     Confirm,
+    Data,
+    DataKind,
     Follow,
     ForwardMsg,
     FrameFlags,
@@ -20,8 +22,10 @@ from rescuemesh.protocol import (
     MoveAround,
     Pose,
     PoseUpdate,
+    Reason,
     ResultCode,
     Return,
+    SegmentAck,
     ShowCam,
     ShowScan,
     Stop,
@@ -50,9 +54,13 @@ messages = st.one_of(
         st.sampled_from(sorted(CONFIRMABLE_TYPES)),
         st.sampled_from(ResultCode),
         st.one_of(st.integers(0, 100), st.just(255)),
+        st.sampled_from(Reason),
     ),
     st.builds(PoseUpdate, poses),
     st.builds(Heartbeat, st.sampled_from([0, *sorted(COMMAND_TYPES)]), st.integers(0, 15)),
+    st.builds(SegmentAck, st.integers(0, 0xFFFF), st.integers(0, 4096), st.integers(0, 2**48 - 1)),
+    # up to 7 data bytes: a control frame (13-byte overhead); longer ones are logical frames
+    st.builds(Data, st.sampled_from(DataKind), st.integers(0, 0xFFFF), st.binary(max_size=7)),
 )
 
 

@@ -25,6 +25,12 @@ from rescuemesh.protocol import (
     Goto,
     Header,
     Heartbeat,
+    MAX_FORWARD_INNER_BYTES,
+    MAX_MESSAGE_BYTES,
+    Data,
+    DataKind,
+    Reason,
+    SegmentAck,
     IntegrityError,
     LandOnTop,
     MalformedPayload,
@@ -99,18 +105,29 @@ GOLDEN = [
     pytest.param("43 08 01 02 0007", hdr(T.RETURN), Return(), id="Return"),
     pytest.param("43 09 01 02 0007" + P_HEX + "00C8", hdr(T.MOVE_AROUND), MoveAround(P, 2.0), id="MoveAround"),
     pytest.param(
-        "43 20 02 01 0003 0007 01 00 FF",
+        "43 20 02 01 0003 0007 01 00 FF 00",
         hdr(T.CONFIRM, src=2, dst=1, seq=3),
         Confirm(7, T.FOLLOW, ResultCode.ACCEPTED, 255),
         id="Confirm",
     ),
     pytest.param("43 21 01 02 0008" + Q_HEX, hdr(T.POSE_UPDATE, seq=8), PoseUpdate(Q), id="PoseUpdate"),
     pytest.param("43 22 01 FF 0009 01 03", hdr(T.HEARTBEAT, dst=255, seq=9), Heartbeat(1, 3), id="Heartbeat"),
+    pytest.param(
+        "43 20 02 01 0005 0007 01 05 FF 03",
+        hdr(T.CONFIRM, src=2, dst=1, seq=5),
+        Confirm(7, T.FOLLOW, ResultCode.FAILED, 255, Reason.LINK_LOST),
+        id="Confirm-failed-link-lost",
+    ),
+    # SegmentAck for message seq 0x0102: segments 0..2 in, then 3, 5 and 47 of the next 48
+    pytest.param("43 23 02 01 000A 0102 0003 8000 0000 0005", hdr(T.SEGMENT_ACK, src=2, dst=1, seq=10),
+                 SegmentAck(0x0102, 3, (1 << 47) | 0b101), id="SegmentAck"),
+    pytest.param("43 24 02 01 000B 02 0007 FFD8FF", hdr(T.DATA, src=2, dst=1, seq=11),
+                 Data(DataKind.IMAGE_JPEG, 7, b"\xff\xd8\xff"), id="Data"),
     # header variants: attempt 2 (0x80 | 0x01), TTL 0 (0x40), seq 0xFFFF, address 254
     pytest.param("43 81 01 02 0007" + P_HEX, hdr(T.FOLLOW, attempt=2), Follow(P), id="Follow-resend-2"),
     pytest.param("40 06 FE 00 FFFF", hdr(T.STOP, src=254, dst=0, seq=0xFFFF, ttl=0), Stop(), id="Stop-edges"),
     pytest.param(
-        "43 20 02 01 0004 0007 01 01 28",
+        "43 20 02 01 0004 0007 01 01 28 00",
         hdr(T.CONFIRM, src=2, dst=1, seq=4),
         Confirm(7, T.FOLLOW, ResultCode.IN_PROGRESS, 40),
         id="Confirm-in-progress",
@@ -219,7 +236,7 @@ def test_largest_frame_of_each_type_fits_the_budget(message):
 def test_largest_control_frames_are_exactly_20_bytes():
     assert max(max_frame_bytes(t) for t in MessageType) == MAX_CONTROL_FRAME_BYTES
     assert {t for t in MessageType if max_frame_bytes(t) == 20} == {
-        T.SHOW_CAM, T.SHOW_SCAN, T.MOVE_AROUND, T.FORWARD_MSG,
+        T.SHOW_CAM, T.SHOW_SCAN, T.MOVE_AROUND, T.FORWARD_MSG, T.SEGMENT_ACK, T.DATA,
     }
     assert set(PAYLOAD_BYTES) == set(MessageType)
 
@@ -265,8 +282,18 @@ def test_inner_messages_round_trip_and_ride_in_forward_msg():
     assert decode_inner(inner) == Follow(P)
     header, message = decode_frame(encode_frame(hdr(T.FORWARD_MSG), ForwardMsg(3, inner)))
     assert decode_inner(message.message) == Follow(P)
-    with pytest.raises(EncodeError):  # 11 bytes: does not fit (bulk data is segmented later)
-        encode_frame(hdr(T.FORWARD_MSG), ForwardMsg(3, encode_inner(MoveAround(P, 1.0))))
+    # 11 bytes: no longer a 20-byte control frame but a 21-byte logical frame the mesh segments
+    long_frame = encode_frame(hdr(T.FORWARD_MSG), ForwardMsg(3, encode_inner(MoveAround(P, 1.0))))
+    assert len(long_frame) == MAX_CONTROL_FRAME_BYTES + 2
+    assert decode_inner(decode_frame(long_frame)[1].message) == MoveAround(P, 1.0)
+
+
+def test_logical_frames_up_to_the_maximum_decode_and_longer_ones_are_refused():
+    data = Data(DataKind.RAW, 9, bytes(range(256)) * 31 + bytes(MAX_MESSAGE_BYTES - 13 - 256 * 31))
+    frame = encode_frame(hdr(T.DATA), data)
+    assert len(frame) == MAX_MESSAGE_BYTES and decode_frame(frame) == (hdr(T.DATA), data)
+    with pytest.raises(MalformedPayload):
+        decode_frame(with_crc(frame[:-4].hex() + "00"))
 
 
 @pytest.mark.parametrize("raw, error", [(b"", TruncatedFrame), (b"\x48", UnknownMessageType), (b"\x06\x00", MalformedPayload)])
@@ -332,7 +359,11 @@ def test_flipping_any_bit_is_detected(prefix):
         pytest.param("43 20 02 01 0003 0007 41 00 FF", MalformedPayload, id="confirm-ref-type-high-bits"),
         pytest.param("43 20 02 01 0003 0007 01 00", MalformedPayload, id="confirm-short"),
         pytest.param("43 07 01 02 0007 03", MalformedPayload, id="forward-empty"),
-        pytest.param("43 07 01 02 0007 03 00112233445566778899", MalformedPayload, id="forward-10-bytes"),
+        pytest.param("43 24 01 02 0007 09 0001", MalformedPayload, id="data-kind-9"),
+        pytest.param("43 24 01 02 0007 00 00", MalformedPayload, id="data-short"),
+        pytest.param("43 23 01 02 0007 0001 1001 000000000000", MalformedPayload, id="segment-ack-base-4097"),
+        pytest.param("43 23 01 FF 0007 0001 0001 000000000000", MalformedPayload, id="segment-ack-broadcast"),
+        pytest.param("43 20 02 01 0003 0007 01 05 FF 0D", MalformedPayload, id="confirm-reason-13"),
         pytest.param("43 22 01 FF 0009 20 03", MalformedPayload, id="heartbeat-active-confirm"),
         pytest.param("43 22 01 FF 0009 01 10", MalformedPayload, id="heartbeat-init-ttl-16"),
         pytest.param("43 22 01 FF 0009 01", MalformedPayload, id="heartbeat-short"),
@@ -388,7 +419,13 @@ INF, NAN = float("inf"), float("nan")
         pytest.param(hdr(T.SHOW_SCAN), ShowScan(P, 1.0, -1), id="count-negative"),
         pytest.param(hdr(T.SHOW_SCAN), ShowScan(P, 1.0, 1.5), id="count-not-int"),
         pytest.param(hdr(T.SHOW_SCAN), ShowScan(P, 1.0, "2"), id="count-str"),
-        pytest.param(hdr(T.FORWARD_MSG), ForwardMsg(3, bytes(10)), id="forward-10-bytes"),
+        pytest.param(hdr(T.FORWARD_MSG), ForwardMsg(3, bytes(MAX_FORWARD_INNER_BYTES + 1)), id="forward-too-long"),
+        pytest.param(hdr(T.DATA), Data(DataKind.RAW, 1, bytes(MAX_MESSAGE_BYTES)), id="data-too-long"),
+        pytest.param(hdr(T.DATA), Data(9, 1, b""), id="data-kind-9"),
+        pytest.param(hdr(T.SEGMENT_ACK), SegmentAck(1, 4097, 0), id="segment-ack-base-4097"),
+        pytest.param(hdr(T.SEGMENT_ACK), SegmentAck(1, 0, 1 << 48), id="segment-ack-bitmap-49-bits"),
+        pytest.param(hdr(T.SEGMENT_ACK, dst=255), SegmentAck(1, 0, 0), id="segment-ack-broadcast"),
+        pytest.param(hdr(T.CONFIRM), Confirm(7, T.FOLLOW, ResultCode.FAILED, 255, 200), id="reason-200"),
         pytest.param(hdr(T.FORWARD_MSG), ForwardMsg(3, b""), id="forward-empty"),
         pytest.param(hdr(T.FORWARD_MSG), ForwardMsg(256, b"\x06"), id="forward-target-256"),
         pytest.param(hdr(T.FORWARD_MSG), ForwardMsg(3, "text"), id="forward-str"),

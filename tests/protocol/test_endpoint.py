@@ -10,10 +10,13 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from rescuemesh.protocol import (
+    DEFAULT_TTL,
     MAX_CONTROL_FRAME_BYTES,
     CommandReceived,
     Confirm,
     ConfirmReceived,
+    DataKind,
+    DataReceived,
     DeliveryFailed,
     EncodeError,
     Endpoint,
@@ -30,9 +33,11 @@ from rescuemesh.protocol import (
     Pose,
     PoseUpdate,
     PoseUpdateReceived,
+    Reason,
     ReliabilityConfig,
     ResultCode,
     Return,
+    SegmentAck,
     Stop,
     decode_frame,
     encode_frame,
@@ -163,7 +168,7 @@ def test_broadcast_heartbeat_reaches_everyone_unconfirmed():
         assert drain(ep) == [HeartbeatReceived(1, T.FOLLOW, 0.0)]
     (sent,) = link.log
     header, message = decode_frame(sent.data)
-    assert (header.dst, header.ttl, message) == (0xFF, 3, Heartbeat(1, 3))
+    assert (header.dst, header.ttl, message) == (0xFF, DEFAULT_TTL, Heartbeat(1, DEFAULT_TTL))
     assert a.get_timer() is None
 
 
@@ -373,7 +378,7 @@ def test_stats():
         "confirms_sent": 0, "confirms_received": 1, "delivery_failures": 0, "duplicates": 0,
         "frames_rejected": 0, "frames_not_for_us": 0, "frames_received": 1,
     }
-    assert b.stats.max_frame_bytes == 15 and b.stats.confirms_sent == 1
+    assert b.stats.max_frame_bytes == 16 and b.stats.confirms_sent == 1
 
 
 # --- receive() never raises ---------------------------------------------------------------------
@@ -424,3 +429,54 @@ def test_each_valid_frame_is_one_event_a_duplicate_or_not_for_us(frames):
     s = ep.stats
     assert s.frames_rejected == 0 and s.frames_received == len(frames)
     assert len(drain(ep)) == len(frames) - s.frames_not_for_us - s.duplicates
+
+
+# --- hops, bulk data, mesh control frames (the mesh layer below the endpoint) ---------------------
+
+
+def test_confirm_timeout_grows_by_50_ms_per_hop_beyond_the_first():
+    a, b, link = pair(drop=set(range(10)))
+    a.set_path_hops(2, 3)  # two relays between us: Bluetooth Mesh SAR timers grow 50 ms per TTL
+    a.send_command(2, Stop(), 0.0)
+    link.pump()
+    assert a.get_timer() == pytest.approx(0.15 + 2 * 0.05)
+    a.set_path_hops(2, None)
+    a.send_command(2, Return(), 1.0)
+    assert a.confirm_timeout_s(2, 10) == pytest.approx(0.15)
+
+
+def test_a_segmented_frame_waits_for_its_segments_too():
+    a = Endpoint(1)
+    # 4,000 data bytes: a 4,013-byte logical frame, (4013 - 6) / 16 -> 251 segments of the mesh layer
+    assert a.confirm_timeout_s(2, 4013) == pytest.approx(0.15 + 251 * 0.03)
+
+
+def test_data_is_delivered_once_and_confirmed_like_a_command():
+    a, b, link = pair(drop={1})  # the first Confirm is lost: a resends the Data, b answers from its cache
+    payload = bytes(range(256)) * 16
+    seq = a.send_data(2, DataKind.LASER_SCAN, 9, payload, 0.0)
+    link.pump()
+    (event,) = drain(b)
+    assert event == DataReceived(1, seq, DataKind.LASER_SCAN, 9, payload, 0.0)
+    b.confirm(1, seq, T.DATA, R.ACCEPTED, 0.0)
+    link.pump()
+    link.run_until(10.0)
+    assert drain(b) == []  # the resend was recognised: no second DataReceived
+    assert [e.result for e in drain(a)] == [R.ACCEPTED]
+    assert len(link.sent_by(1)) == 2 and b.stats.duplicates == 1
+
+
+def test_a_segment_ack_that_reaches_the_endpoint_is_not_for_it():
+    b = Endpoint(2)
+    b.receive(encode_frame(Header(1, FrameFlags.NONE, 3, 0, T.SEGMENT_ACK, 1, 2, 5), SegmentAck(4, 2, 1)), 0.0)
+    assert drain(b) == [] and b.stats.frames_not_for_us == 1
+
+
+def test_a_final_report_carries_its_reason():
+    a, b, link = pair()
+    seq = a.send_command(2, Follow(P), 0.0)
+    link.pump()
+    b.confirm(1, seq, T.FOLLOW, R.ACCEPTED, 0.0)
+    b.confirm(1, seq, T.FOLLOW, R.FAILED, 0.5, reason=Reason.LINK_LOST)
+    link.pump()
+    assert [(e.result, e.reason) for e in drain(a)] == [(R.ACCEPTED, Reason.NONE), (R.FAILED, Reason.LINK_LOST)]

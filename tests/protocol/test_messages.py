@@ -47,7 +47,7 @@ def test_message_types_fit_six_bits_and_zero_is_reserved():
 def test_commands_are_the_nine_of_table_iii():
     assert {type(c).TYPE for c in COMMANDS} == COMMAND_TYPES
     assert len(COMMAND_TYPES) == 9
-    assert CONFIRMABLE_TYPES == COMMAND_TYPES | {MessageType.POSE_UPDATE}
+    assert CONFIRMABLE_TYPES == COMMAND_TYPES | {MessageType.POSE_UPDATE, MessageType.DATA}
 
 
 @pytest.mark.parametrize("message", COMMANDS, ids=lambda m: type(m).__name__)

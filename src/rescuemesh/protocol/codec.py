@@ -29,7 +29,9 @@ from .wire import (  # noqa: F401  (field pairs and constants re-exported: codec
     INTEGRITY_BYTES,
     MAX_ATTEMPT,
     MAX_CONTROL_FRAME_BYTES,
+    MAX_FORWARD_INNER_BYTES,
     MAX_FORWARD_MESSAGE_BYTES,
+    MAX_MESSAGE_BYTES,
     MAX_SEQ,
     MAX_TTL,
     MAX_UNICAST_ADDRESS,
@@ -107,7 +109,8 @@ def _make_header(b0: int, b1: int, msg_type: MessageType, src: int, dst: int, se
 
 
 def _unicast_only(msg_type: int) -> bool:
-    """Everything but a Heartbeat is answered or answers, so it needs a single destination."""
+    """Everything but a Heartbeat is answered or answers (a SegmentAck answers segments, Data is
+    confirmed), so it needs a single destination."""
     return msg_type != MessageType.HEARTBEAT
 
 
@@ -144,8 +147,15 @@ def pull_header(data: bytes, offset: int = 0) -> tuple[Header, int]:
     return _make_header(b0, b1, msg_type, src, dst, seq), offset + HEADER_BYTES
 
 
+#: Types whose frames may be longer than a control frame (logical frames, segmented by the mesh).
+BULK_TYPES = frozenset({MessageType.FORWARD_MSG, MessageType.DATA})
+
+
 def max_frame_bytes(msg_type: MessageType) -> int:
-    """Largest frame of this type in bytes (header + largest payload + integrity field)."""
+    """Largest frame of this type in bytes (header + largest payload + integrity field). For the
+    bulk types (ForwardMsg, Data) this is the largest unsegmented frame, MAX_CONTROL_FRAME_BYTES."""
+    if msg_type in BULK_TYPES:
+        return MAX_CONTROL_FRAME_BYTES
     return FRAME_OVERHEAD_BYTES + PAYLOAD_BYTES[msg_type][1]
 
 
@@ -164,6 +174,8 @@ def encode_frame(header: Header, message: Message) -> bytes:
     except _HEADER_BUGS as exc:
         raise EncodeError(f"cannot encode {header!r}: {exc}") from exc
     push_payload(buf, message)
+    if len(buf) + INTEGRITY_BYTES > MAX_MESSAGE_BYTES:
+        raise EncodeError(f"frame of {len(buf) + INTEGRITY_BYTES} bytes; at most {MAX_MESSAGE_BYTES}")
     push_crc(buf)
     return bytes(buf)
 
@@ -177,6 +189,8 @@ def decode_frame(data: bytes) -> tuple[Header, Message]:
     n = len(data)
     if n < FRAME_OVERHEAD_BYTES:
         raise TruncatedFrame(f"{n} bytes, a frame has at least {FRAME_OVERHEAD_BYTES}")
+    if n > MAX_MESSAGE_BYTES:
+        raise MalformedPayload(f"{n} bytes, a frame has at most {MAX_MESSAGE_BYTES}")
     b0 = data[0]
     if b0 >> 6 != PROTOCOL_VERSION:
         raise UnsupportedVersion(f"version {b0 >> 6}, this endpoint speaks {PROTOCOL_VERSION}")

@@ -12,6 +12,7 @@ from .codec import (
     BROADCAST,
     DEFAULT_TTL,
     MAX_ATTEMPT,
+    MAX_CONTROL_FRAME_BYTES,
     MAX_SEQ,
     MAX_TTL,
     MAX_UNICAST_ADDRESS,
@@ -26,6 +27,7 @@ from .errors import FrameError
 from .events import (
     CommandReceived,
     ConfirmReceived,
+    DataReceived,
     DeliveryFailed,
     Event,
     FrameRejected,
@@ -37,11 +39,14 @@ from .messages import (
     PROGRESS_UNKNOWN,
     Command,
     Confirm,
+    Data,
+    DataKind,
     Heartbeat,
     Message,
     MessageType,
     Pose,
     PoseUpdate,
+    Reason,
     ResultCode,
     is_command,
 )
@@ -113,6 +118,9 @@ class Endpoint:
         self._handlers[MessageType.POSE_UPDATE] = self._on_pose_update
         self._handlers[MessageType.CONFIRM] = self._on_confirm
         self._handlers[MessageType.HEARTBEAT] = self._on_heartbeat
+        self._handlers[MessageType.DATA] = self._on_data
+        self._handlers[MessageType.SEGMENT_ACK] = self._on_mesh_control
+        self._path_hops: dict[int, int] = {}
 
     # --- sending -------------------------------------------------------------------------------
 
@@ -130,6 +138,27 @@ class Endpoint:
         """Queue a PoseUpdate to follower `dst`, confirmed and retried like a command; returns its seq."""
         return self._send_confirmable(dst, PoseUpdate(pose), now)
 
+    def send_data(self, dst: int, kind: DataKind, ref_seq: int, data: bytes, now: float) -> int:
+        """Queue bulk `data` (answering our command `ref_seq` of `dst`'s) to `dst`, confirmed and
+        retried; a frame longer than a control frame is segmented by the mesh layer. Returns its seq."""
+        return self._send_confirmable(dst, Data(kind, ref_seq, bytes(data)), now)
+
+    def set_path_hops(self, dst: int, hops: int | None) -> None:
+        """Tell the endpoint how many hops away `dst` is (the mesh layer learns it from heartbeats):
+        frames to it wait `per_hop_timeout_s` longer per hop beyond the first. None forgets it."""
+        if hops is None or hops <= 1:
+            self._path_hops.pop(dst, None)
+        else:
+            self._path_hops[dst] = int(hops)
+
+    def confirm_timeout_s(self, dst: int, frame_bytes: int) -> float:
+        """How long, in s, a frame of `frame_bytes` to `dst` waits for its Confirm before a resend."""
+        rel = self.config.reliability
+        timeout = rel.ack_timeout_s + rel.per_hop_timeout_s * (self._path_hops.get(dst, 1) - 1)
+        if frame_bytes > MAX_CONTROL_FRAME_BYTES:  # segmented: 16 frame bytes per segment (docs/mesh.md)
+            timeout += rel.per_segment_timeout_s * (-(-(frame_bytes - 6) // 16))
+        return timeout
+
     def send_heartbeat(self, now: float, active_command: int = 0) -> None:
         """Queue a broadcast Heartbeat (not confirmed, not retried). `active_command`: a command's
         MessageType value, 0 when idle."""
@@ -145,8 +174,9 @@ class Endpoint:
         result: ResultCode,
         now: float,
         progress: int = PROGRESS_UNKNOWN,
+        reason: Reason = Reason.NONE,
     ) -> None:
-        """Answer frame `ref_seq` from `dst` (progress 0-100 %, 255 unknown).
+        """Answer frame `ref_seq` from `dst` (progress 0-100 %, 255 unknown; `reason` why it ended).
 
         The Confirm is cached for (dst, ref_seq): a resend of that frame gets it again. A later call
         for the same frame (IN_PROGRESS, DONE, FAILED, CANCELLED) replaces the cached Confirm and is
@@ -154,7 +184,7 @@ class Endpoint:
         after a final result) or a ref_type that does not match the frame, EncodeError for bad values.
         """
         self._check_unicast(dst)
-        frame = self._encode(dst, self._seq, Confirm(ref_seq, ref_type, result, progress))
+        frame = self._encode(dst, self._seq, Confirm(ref_seq, ref_type, result, progress, reason))
         self._seen.check_report(dst, ref_seq, ref_type, result)
         self._seq = (self._seq + 1) & MAX_SEQ
         self._seen.record_confirm(dst, ref_seq, result, frame)
@@ -244,7 +274,7 @@ class Endpoint:
         header = self._header(dst, seq, message)
         frame = encode_frame(header, message)
         self._seq = (seq + 1) & MAX_SEQ
-        self._pending.add(dst, seq, header, message, now)
+        self._pending.add(dst, seq, header, message, now, self.confirm_timeout_s(dst, len(frame)))
         self._outbox.append(frame)
         return seq
 
@@ -275,9 +305,17 @@ class Endpoint:
         self._events.append(
             ConfirmReceived(
                 header.src, message.ref_seq, message.ref_type, message.result, message.progress,
-                solicited, sends, rtt_s, now,
+                solicited, sends, rtt_s, now, message.reason,
             )
         )
 
     def _on_heartbeat(self, header: Header, message: Heartbeat, now: float) -> None:
         self._events.append(HeartbeatReceived(header.src, message.active_command, now))
+
+    def _on_data(self, header: Header, message: Data, now: float) -> None:
+        if self._is_new(header, message, now):
+            self._events.append(DataReceived(header.src, header.seq, message.kind, message.ref_seq, message.data, now))
+
+    def _on_mesh_control(self, header: Header, message, now: float) -> None:
+        """SegmentAcks belong to the mesh layer below; one that reaches the endpoint is not for it."""
+        self.stats.frames_not_for_us += 1

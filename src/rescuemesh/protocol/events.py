@@ -8,7 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Union
 
-from .messages import Command, Message, MessageType, Pose, ResultCode
+from .messages import Command, DataKind, Message, MessageType, Pose, Reason, ResultCode
 
 
 @dataclass(frozen=True, slots=True)
@@ -49,6 +49,19 @@ class ConfirmReceived:
     sends: int
     rtt_s: float | None
     now: float
+    reason: Reason = Reason.NONE
+
+
+@dataclass(frozen=True, slots=True)
+class DataReceived:
+    """New bulk data from `src` (frame `seq`), answering our command `ref_seq`. Confirm it."""
+
+    src: int
+    seq: int
+    kind: DataKind
+    ref_seq: int
+    data: bytes
+    now: float
 
 
 @dataclass(frozen=True, slots=True)
@@ -84,6 +97,7 @@ Event = Union[
     CommandReceived,
     PoseUpdateReceived,
     ConfirmReceived,
+    DataReceived,
     DeliveryFailed,
     HeartbeatReceived,
     FrameRejected,

@@ -29,6 +29,8 @@ class MessageType(IntEnum):
     CONFIRM = 32
     POSE_UPDATE = 33
     HEARTBEAT = 34
+    SEGMENT_ACK = 35
+    DATA = 36
 
 
 class ResultCode(IntEnum):
@@ -44,6 +46,34 @@ class ResultCode(IntEnum):
     UNSUPPORTED = 4  # this robot cannot do it (no camera for ShowCam, cannot fly for LandOnTop)
     FAILED = 5  # started but could not finish (goal unreachable, partner lost)
     CANCELLED = 6  # stopped by a Stop or replaced by a newer motion command
+
+
+class Reason(IntEnum):
+    """Why a command ended as it did, carried by a Confirm beside its result (MAVLink COMMAND_ACK's
+    result_param2 plays this role). NONE for ACCEPTED, IN_PROGRESS and DONE."""
+
+    NONE = 0
+    STOPPED = 1  # a Stop ended it
+    REPLACED = 2  # a newer motion command replaced it
+    LINK_LOST = 3  # the partner was lost and not heard again within the reconnect window
+    TIMEOUT = 4  # not done in time (a ForwardMsg whose target stayed unreachable)
+    NOT_DELIVERED = 5  # a forwarded message was sent but never confirmed by its target
+    NO_PATH = 6  # navigation found no path
+    STUCK = 7  # navigation made no progress
+    PARTNER_SILENT = 8  # the leader sent no PoseUpdate for too long
+    NOT_FOLLOWING = 9  # a PoseUpdate from a robot we do not follow
+    BLOCKED = 10  # every waypoint is inside an obstacle
+    BAD_REQUEST = 11  # the request cannot be carried out as given (a malformed inner message)
+    UNKNOWN_TARGET = 12  # a ForwardMsg to our own or the broadcast address
+
+
+class DataKind(IntEnum):
+    """What a Data message carries."""
+
+    RAW = 0
+    LASER_SCAN = 1
+    IMAGE_JPEG = 2
+    IMAGE_PNG = 3
 
 
 #: Confirm.progress value meaning "progress unknown" (MAVLink COMMAND_ACK.progress uses the same).
@@ -125,8 +155,9 @@ class Stop:
 class ForwardMsg:
     """Forward `message` to robot `target` (paper Table III).
 
-    `message` is an inner message (type byte + payload, see `codec.encode_inner`), at most 9 bytes:
-    bulk data is segmented by a later issue.
+    `message` is an inner message (type byte + payload, see `codec.encode_inner`). Up to 9 bytes
+    the frame is a 20-byte control frame; a longer one (up to MAX_FORWARD_INNER_BYTES) makes a
+    logical frame that the mesh layer segments.
     """
 
     TYPE: ClassVar[MessageType] = MessageType.FORWARD_MSG
@@ -157,7 +188,7 @@ class MoveAround:
 class Confirm:
     """Answer to the command or PoseUpdate sent with sequence number `ref_seq` and type `ref_type`.
 
-    `progress`: 0-100 %, or PROGRESS_UNKNOWN (255). Paper IV.A: COMMAND_CONFIRM; result codes after
+    `progress`: 0-100 %, or PROGRESS_UNKNOWN (255); `reason` says why a command ended. Paper IV.A: COMMAND_CONFIRM; result codes after
     MAVLink COMMAND_ACK.
     """
 
@@ -166,6 +197,7 @@ class Confirm:
     ref_type: MessageType
     result: ResultCode
     progress: int = PROGRESS_UNKNOWN
+    reason: Reason = Reason.NONE
 
 
 @dataclass(frozen=True, slots=True)
@@ -189,18 +221,41 @@ class Heartbeat:
     init_ttl: int
 
 
+@dataclass(frozen=True, slots=True)
+class SegmentAck:
+    """Block acknowledgement of a segmented message (Bluetooth Mesh lower transport Segment
+    Acknowledgment, widened): every segment with index < `base` arrived, and bit i of `bitmap`
+    (48 bits) says whether segment `base + i` arrived. Sent by the mesh layer, never confirmed."""
+
+    TYPE: ClassVar[MessageType] = MessageType.SEGMENT_ACK
+    ref_seq: int
+    base: int
+    bitmap: int
+
+
+@dataclass(frozen=True, slots=True)
+class Data:
+    """Bulk data (a laser scan, a camera image ...) answering the command `ref_seq`; longer than a
+    control frame, so the mesh layer segments it. Confirmed like a command."""
+
+    TYPE: ClassVar[MessageType] = MessageType.DATA
+    kind: DataKind
+    ref_seq: int
+    data: bytes
+
+
 Command = Union[Follow, ShowCam, ShowScan, LandOnTop, Goto, Stop, ForwardMsg, Return, MoveAround]
-Message = Union[Command, Confirm, PoseUpdate, Heartbeat]
+Message = Union[Command, Confirm, PoseUpdate, Heartbeat, SegmentAck, Data]
 
 COMMAND_CLASSES: tuple[type, ...] = (
     Follow, ShowCam, ShowScan, LandOnTop, Goto, Stop, ForwardMsg, Return, MoveAround,
 )
-MESSAGE_CLASSES: tuple[type, ...] = COMMAND_CLASSES + (Confirm, PoseUpdate, Heartbeat)
+MESSAGE_CLASSES: tuple[type, ...] = COMMAND_CLASSES + (Confirm, PoseUpdate, Heartbeat, SegmentAck, Data)
 
 #: Types of the commands of paper Table III.
 COMMAND_TYPES: frozenset[MessageType] = frozenset(cls.TYPE for cls in COMMAND_CLASSES)
-#: Types a receiver must answer with a Confirm (and a sender retries): commands and PoseUpdate.
-CONFIRMABLE_TYPES: frozenset[MessageType] = COMMAND_TYPES | {MessageType.POSE_UPDATE}
+#: Types a receiver must answer with a Confirm (and a sender retries): commands, PoseUpdate, Data.
+CONFIRMABLE_TYPES: frozenset[MessageType] = COMMAND_TYPES | {MessageType.POSE_UPDATE, MessageType.DATA}
 #: MessageType -> dataclass.
 MESSAGE_CLASS_BY_TYPE: dict[MessageType, type] = {cls.TYPE: cls for cls in MESSAGE_CLASSES}
 

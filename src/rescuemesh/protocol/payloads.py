@@ -14,6 +14,8 @@ from .messages import (
     CONFIRMABLE_TYPES,
     PROGRESS_UNKNOWN,
     Confirm,
+    Data,
+    DataKind,
     Follow,
     ForwardMsg,
     Goto,
@@ -23,26 +25,33 @@ from .messages import (
     MessageType,
     MoveAround,
     PoseUpdate,
+    Reason,
     ResultCode,
     Return,
+    SegmentAck,
     ShowCam,
     ShowScan,
     Stop,
 )
 from .wire import (
     BROADCAST,
-    MAX_FORWARD_MESSAGE_BYTES,
+    DATA_HEADER_BYTES,
+    MAX_DATA_BYTES,
+    MAX_FORWARD_INNER_BYTES,
     MAX_TTL,
+    SEGMENT_ACK_BITMAP_BITS,
     TYPE_MASK,
     pull_period,
     pull_pose,
     pull_radius,
     pull_u16,
+    pull_u48,
     push_period,
     push_pose,
     push_radius,
     push_u8,
     push_u16,
+    push_u48,
 )
 
 #: Type value (0..63) -> MessageType, None where no type is defined.
@@ -52,6 +61,14 @@ TYPE_BY_VALUE: tuple[MessageType | None, ...] = tuple(
 _RESULT_BY_VALUE: tuple[ResultCode | None, ...] = tuple(
     ResultCode(v) if v in ResultCode._value2member_map_ else None for v in range(256)
 )
+_REASON_BY_VALUE: tuple[Reason | None, ...] = tuple(
+    Reason(v) if v in Reason._value2member_map_ else None for v in range(256)
+)
+_KIND_BY_VALUE: tuple[DataKind | None, ...] = tuple(
+    DataKind(v) if v in DataKind._value2member_map_ else None for v in range(256)
+)
+#: Largest segment index + 1 a SegmentAck's base may name (4096 segments, docs/mesh.md).
+MAX_SEGMENTS = 4096
 _HEARTBEAT_COMMANDS = frozenset({0, *COMMAND_TYPES})
 _CONFIRMABLE = CONFIRMABLE_TYPES
 
@@ -104,11 +121,8 @@ def _pull_show_as(cls: type) -> Callable[[bytes, int, int], Message]:
 def _push_forward(buf: bytearray, msg: ForwardMsg) -> None:
     if not 0 <= msg.target <= BROADCAST:
         raise EncodeError(f"target {msg.target} out of range 0..255")
-    if not 1 <= len(msg.message) <= MAX_FORWARD_MESSAGE_BYTES:
-        raise EncodeError(
-            f"forwarded message of {len(msg.message)} bytes (1..{MAX_FORWARD_MESSAGE_BYTES}); "
-            "bulk data needs segmentation (later issue)"
-        )
+    if not 1 <= len(msg.message) <= MAX_FORWARD_INNER_BYTES:
+        raise EncodeError(f"forwarded message of {len(msg.message)} bytes (1..{MAX_FORWARD_INNER_BYTES})")
     push_u8(buf, msg.target)
     buf += msg.message
 
@@ -138,6 +152,9 @@ def _push_confirm(buf: bytearray, msg: Confirm) -> None:
     push_u8(buf, msg.ref_type)
     push_u8(buf, msg.result)
     push_u8(buf, msg.progress)
+    if not 0 <= msg.reason < len(_REASON_BY_VALUE) or _REASON_BY_VALUE[msg.reason] is None:
+        raise EncodeError(f"reason {msg.reason!r} is not a Reason")
+    push_u8(buf, msg.reason)
 
 
 def _pull_confirm(data: bytes, offset: int, end: int) -> Confirm:
@@ -145,13 +162,16 @@ def _pull_confirm(data: bytes, offset: int, end: int) -> Confirm:
     ref_type = TYPE_BY_VALUE[data[offset]] if data[offset] <= TYPE_MASK else None
     result = _RESULT_BY_VALUE[data[offset + 1]]
     progress = data[offset + 2]
+    reason = _REASON_BY_VALUE[data[offset + 3]]
     if ref_type not in _CONFIRMABLE:
         raise MalformedPayload(f"Confirm of non-confirmable type {data[offset]}")
     if result is None:
         raise MalformedPayload(f"result code {data[offset + 1]}")
     if progress > 100 and progress != PROGRESS_UNKNOWN:
         raise MalformedPayload(f"progress {progress}")
-    return Confirm(ref_seq, ref_type, result, progress)
+    if reason is None:
+        raise MalformedPayload(f"reason code {data[offset + 3]}")
+    return Confirm(ref_seq, ref_type, result, progress, reason)
 
 
 def _push_heartbeat(buf: bytearray, msg: Heartbeat) -> None:
@@ -172,6 +192,41 @@ def _pull_heartbeat(data: bytes, offset: int, end: int) -> Heartbeat:
     return Heartbeat(active, init_ttl)
 
 
+def _push_segment_ack(buf: bytearray, msg: SegmentAck) -> None:
+    if not 0 <= msg.base <= MAX_SEGMENTS:
+        raise EncodeError(f"SegmentAck base {msg.base} out of range 0..{MAX_SEGMENTS}")
+    if not 0 <= msg.bitmap < 1 << SEGMENT_ACK_BITMAP_BITS:
+        raise EncodeError(f"SegmentAck bitmap {msg.bitmap!r} is not a {SEGMENT_ACK_BITMAP_BITS}-bit value")
+    push_u16(buf, msg.ref_seq)
+    push_u16(buf, msg.base)
+    push_u48(buf, msg.bitmap)
+
+
+def _pull_segment_ack(data: bytes, offset: int, end: int) -> SegmentAck:
+    ref_seq, offset = pull_u16(data, offset)
+    base, offset = pull_u16(data, offset)
+    if base > MAX_SEGMENTS:
+        raise MalformedPayload(f"SegmentAck base {base}")
+    return SegmentAck(ref_seq, base, pull_u48(data, offset)[0])
+
+
+def _push_data(buf: bytearray, msg: Data) -> None:
+    if not 0 <= msg.kind < len(_KIND_BY_VALUE) or _KIND_BY_VALUE[msg.kind] is None:
+        raise EncodeError(f"data kind {msg.kind!r} is not a DataKind")
+    if not isinstance(msg.data, (bytes, bytearray)) or len(msg.data) > MAX_DATA_BYTES:
+        raise EncodeError(f"Data carries bytes, at most {MAX_DATA_BYTES} of them")
+    push_u8(buf, msg.kind)
+    push_u16(buf, msg.ref_seq)
+    buf += msg.data
+
+
+def _pull_data(data: bytes, offset: int, end: int) -> Data:
+    kind = _KIND_BY_VALUE[data[offset]]
+    if kind is None:
+        raise MalformedPayload(f"data kind {data[offset]}")
+    return Data(kind, pull_u16(data, offset + 1)[0], bytes(data[offset + DATA_HEADER_BYTES : end]))
+
+
 # class -> (push, min payload bytes, max payload bytes, pull)
 _CODECS: dict[type, tuple[Callable, int, int, Callable]] = {
     Follow: (_push_pose_of("frame"), 8, 8, _pull_pose_as(Follow)),
@@ -180,12 +235,14 @@ _CODECS: dict[type, tuple[Callable, int, int, Callable]] = {
     LandOnTop: (_push_pose_of("frame"), 8, 8, _pull_pose_as(LandOnTop)),
     Goto: (_push_pose_of("frame"), 8, 8, _pull_pose_as(Goto)),
     Stop: (_push_empty, 0, 0, _pull_empty_as(Stop)),
-    ForwardMsg: (_push_forward, 2, 1 + MAX_FORWARD_MESSAGE_BYTES, _pull_forward),
+    ForwardMsg: (_push_forward, 2, 1 + MAX_FORWARD_INNER_BYTES, _pull_forward),
     Return: (_push_empty, 0, 0, _pull_empty_as(Return)),
     MoveAround: (_push_move_around, 10, 10, _pull_move_around),
-    Confirm: (_push_confirm, 5, 5, _pull_confirm),
+    Confirm: (_push_confirm, 6, 6, _pull_confirm),
     PoseUpdate: (_push_pose_of("pose"), 8, 8, _pull_pose_as(PoseUpdate)),
     Heartbeat: (_push_heartbeat, 2, 2, _pull_heartbeat),
+    SegmentAck: (_push_segment_ack, 10, 10, _pull_segment_ack),
+    Data: (_push_data, DATA_HEADER_BYTES, DATA_HEADER_BYTES + MAX_DATA_BYTES, _pull_data),
 }
 _ENCODERS: dict[type, Callable] = {cls: spec[0] for cls, spec in _CODECS.items()}
 _DECODERS: list[tuple[int, int, Callable] | None] = [None] * (TYPE_MASK + 1)

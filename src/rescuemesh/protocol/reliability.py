@@ -83,12 +83,18 @@ class ReliabilityConfig:
         (paper IV.A: first send + 2 retries = 3). duplicate_cache_size: seqs remembered per source.
         duplicate_window_s: how long, in s, a seen (src, seq) counts as a possible resend; at least
         max_sends * ack_timeout_s so every resend is recognised.
+    per_hop_timeout_s: added to ack_timeout_s for every hop beyond the first to the destination, in
+        s (Bluetooth Mesh SAR timers grow 50 ms per TTL: ack >= 150 + 50 * TTL ms).
+    per_segment_timeout_s: added for every segment of a frame the mesh layer segments, in s (one
+        segment per 20 ms segment interval plus advertising delay, docs/mesh.md).
     """
 
     ack_timeout_s: float = 0.15
     max_sends: int = 3
     duplicate_cache_size: int = 256
     duplicate_window_s: float = 10.0
+    per_hop_timeout_s: float = 0.05
+    per_segment_timeout_s: float = 0.03
 
     def __post_init__(self) -> None:
         if not self.ack_timeout_s > 0.0:  # also rejects NaN
@@ -97,6 +103,8 @@ class ReliabilityConfig:
             raise ValueError(f"max_sends must be an int >= 1, got {self.max_sends!r}")
         if not (isinstance(self.duplicate_cache_size, int) and self.duplicate_cache_size >= 1):
             raise ValueError(f"duplicate_cache_size must be >= 1, got {self.duplicate_cache_size!r}")
+        if not (self.per_hop_timeout_s >= 0.0 and self.per_segment_timeout_s >= 0.0):
+            raise ValueError("per_hop_timeout_s and per_segment_timeout_s must be >= 0")
         if not self.duplicate_window_s >= self.max_sends * self.ack_timeout_s:
             raise ValueError(
                 f"duplicate_window_s ({self.duplicate_window_s!r} s) must cover all sends: "
@@ -119,7 +127,8 @@ _ON_DEADLINE: dict[bool, TimeoutAction] = {False: TimeoutAction.RESEND, True: Ti
 @dataclass(slots=True)
 class PendingFrame:
     """A confirmable frame awaiting its Confirm. Times in s; `header` is the Header of the first
-    send (the endpoint re-encodes resends with the attempt bits raised)."""
+    send (the endpoint re-encodes resends with the attempt bits raised); `timeout_s` is this
+    frame's wait for a Confirm (ack_timeout_s, longer over several hops or for a segmented frame)."""
 
     dst: int
     seq: int
@@ -129,6 +138,7 @@ class PendingFrame:
     first_sent_s: float
     last_sent_s: float
     deadline_s: float
+    timeout_s: float
 
 
 class RetransmissionQueue:
@@ -144,9 +154,12 @@ class RetransmissionQueue:
     def __contains__(self, key: tuple[int, int]) -> bool:
         return key in self._pending
 
-    def add(self, dst: int, seq: int, header: Header, message: Message, now: float) -> PendingFrame:
-        """Record the first send of a frame at `now` s."""
-        frame = PendingFrame(dst, seq, header, message, 1, now, now, now + self._config.ack_timeout_s)
+    def add(self, dst: int, seq: int, header: Header, message: Message, now: float,
+            timeout_s: float | None = None) -> PendingFrame:
+        """Record the first send of a frame at `now` s; it waits `timeout_s` (default ack_timeout_s)
+        for each Confirm."""
+        timeout = self._config.ack_timeout_s if timeout_s is None else timeout_s
+        frame = PendingFrame(dst, seq, header, message, 1, now, now, now + timeout, timeout)
         self._pending[(dst, seq)] = frame
         return frame
 
@@ -170,7 +183,7 @@ class RetransmissionQueue:
     def expire(self, now: float) -> list[tuple[TimeoutAction, PendingFrame]]:
         """Apply every deadline passed by `now`: resend (frame updated in place) or give up (removed)."""
         actions = []
-        max_sends, timeout = self._config.max_sends, self._config.ack_timeout_s
+        max_sends = self._config.max_sends
         for key, frame in list(self._pending.items()):
             if frame.deadline_s > now:
                 continue
@@ -180,7 +193,7 @@ class RetransmissionQueue:
             else:
                 frame.sends += 1
                 frame.last_sent_s = now
-                frame.deadline_s = now + timeout
+                frame.deadline_s = now + frame.timeout_s
             actions.append((action, frame))
         return actions
 

@@ -22,12 +22,19 @@ FRAME_OVERHEAD_BYTES = HEADER_BYTES + INTEGRITY_BYTES
 #: the 20 bytes after the 9-byte header of a 29-byte Bluetooth Mesh network PDU.
 MAX_CONTROL_FRAME_BYTES = 20
 MAX_TTL = 15  # 4 bits, hops (Bluetooth Mesh uses 7 bits, 0..127)
-DEFAULT_TTL = 3
+DEFAULT_TTL = 7  # Zephyr's CONFIG_BT_MESH_DEFAULT_TTL: 7 hops, enough for a 6-hop chain
+#: Largest logical frame (header + payload + integrity) in bytes. Longer than a control frame means
+#: segmented by the mesh layer (docs/mesh.md): 512 segments of 16 bytes.
+MAX_MESSAGE_BYTES = 8192
 MAX_ATTEMPT = 3  # 2 bits: 0 = first send, 1 and 2 = resends; saturates at 3
 MAX_SEQ = 0xFFFF  # per-sender sequence number, wraps to 0
 TYPE_MASK = 0x3F  # byte 1, bits 5-0
 POSE_BYTES = 8
-MAX_FORWARD_MESSAGE_BYTES = 9  # 20 - 10 overhead - 1 target byte
+MAX_FORWARD_MESSAGE_BYTES = 9  # 20 - 10 overhead - 1 target byte: the largest unsegmented inner message
+MAX_FORWARD_INNER_BYTES = MAX_MESSAGE_BYTES - 11  # segmented: the whole logical frame is at most 8192
+DATA_HEADER_BYTES = 3  # Data: kind u8 + ref_seq u16
+MAX_DATA_BYTES = MAX_MESSAGE_BYTES - 10 - DATA_HEADER_BYTES
+SEGMENT_ACK_BITMAP_BITS = 48
 
 POSITION_UNIT_M = 0.01  # x, y, z: int16 cm, +-327.67 m
 YAW_UNIT_RAD = 2.0 * math.pi / 65536.0  # yaw: uint16, 0.0055 deg
@@ -37,6 +44,7 @@ RADIUS_UNIT_M = 0.01  # MoveAround radius: uint16 cm, 0.01..655.35 m
 _U8 = struct.Struct(">B")
 _U16 = struct.Struct(">H")
 _U32 = struct.Struct(">I")
+_U48_BYTES = 6
 _POSE = struct.Struct(">hhhH")
 _TAU = 2.0 * math.pi
 _YAW_SCALE = 65536.0 / _TAU
@@ -79,6 +87,15 @@ def push_u16(buf: bytearray, value: int) -> None:
 
 def pull_u16(data: bytes, offset: int) -> tuple[int, int]:
     return _U16.unpack_from(data, offset)[0], offset + 2
+
+
+def push_u48(buf: bytearray, value: int) -> None:
+    """Append a big-endian 48-bit unsigned integer (0..2**48 - 1)."""
+    buf += value.to_bytes(_U48_BYTES, "big")
+
+
+def pull_u48(data: bytes, offset: int) -> tuple[int, int]:
+    return int.from_bytes(data[offset : offset + _U48_BYTES], "big"), offset + _U48_BYTES
 
 
 def push_pose(buf: bytearray, pose: Pose) -> None:
