@@ -121,6 +121,7 @@ class Endpoint:
         self._handlers[MessageType.DATA] = self._on_data
         self._handlers[MessageType.SEGMENT_ACK] = self._on_mesh_control
         self._path_hops: dict[int, int] = {}
+        self._hops = 1  # hops of the frame being handled, for its events
 
     # --- sending -------------------------------------------------------------------------------
 
@@ -196,9 +197,10 @@ class Endpoint:
 
     # --- the aioquic loop ----------------------------------------------------------------------
 
-    def receive(self, data: bytes, now: float) -> None:
-        """Handle one received frame. Never raises for any bytes: a bad frame becomes a
-        FrameRejected event and a `frames_rejected` count."""
+    def receive(self, data: bytes, now: float, hops: int = 1) -> None:
+        """Handle one received frame that crossed `hops` radio hops (the mesh layer knows; 1 without
+        one). Never raises for any bytes: a bad frame becomes a FrameRejected event and a
+        `frames_rejected` count."""
         self.stats.frames_received += 1
         try:
             header, message = decode_frame(data)
@@ -209,6 +211,7 @@ class Endpoint:
         if header.src == self.address or (header.dst != self.address and header.dst != BROADCAST):
             self.stats.frames_not_for_us += 1
             return
+        self._hops = hops
         self._handlers[header.msg_type](header, message, now)
 
     def frames_to_send(self, now: float) -> list[bytes]:
@@ -289,11 +292,11 @@ class Endpoint:
 
     def _on_command(self, header: Header, message: Command, now: float) -> None:
         if self._is_new(header, message, now):
-            self._events.append(CommandReceived(header.src, header.seq, message, now))
+            self._events.append(CommandReceived(header.src, header.seq, message, now, self._hops))
 
     def _on_pose_update(self, header: Header, message: PoseUpdate, now: float) -> None:
         if self._is_new(header, message, now):
-            self._events.append(PoseUpdateReceived(header.src, header.seq, message.pose, now))
+            self._events.append(PoseUpdateReceived(header.src, header.seq, message.pose, now, self._hops))
 
     def _on_confirm(self, header: Header, message: Confirm, now: float) -> None:
         self.stats.confirms_received += 1
@@ -305,16 +308,17 @@ class Endpoint:
         self._events.append(
             ConfirmReceived(
                 header.src, message.ref_seq, message.ref_type, message.result, message.progress,
-                solicited, sends, rtt_s, now, message.reason,
+                solicited, sends, rtt_s, now, message.reason, self._hops,
             )
         )
 
     def _on_heartbeat(self, header: Header, message: Heartbeat, now: float) -> None:
-        self._events.append(HeartbeatReceived(header.src, message.active_command, now))
+        self._events.append(HeartbeatReceived(header.src, message.active_command, now, self._hops))
 
     def _on_data(self, header: Header, message: Data, now: float) -> None:
         if self._is_new(header, message, now):
-            self._events.append(DataReceived(header.src, header.seq, message.kind, message.ref_seq, message.data, now))
+            self._events.append(DataReceived(header.src, header.seq, message.kind, message.ref_seq, message.data, now,
+                                             self._hops))
 
     def _on_mesh_control(self, header: Header, message, now: float) -> None:
         """SegmentAcks belong to the mesh layer below; one that reaches the endpoint is not for it."""

@@ -1,6 +1,6 @@
 """Events the Endpoint hands to its application, pulled with `Endpoint.next_event()` (None when empty).
 Owns the event dataclasses only; must not know how they are produced or what the application does.
-Every event carries `now`, the time in s at which it was produced.
+Events carry `now` (s) and, for a received frame, `hops`: the radio hops it crossed (mesh-layer fact).
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ class CommandReceived:
     seq: int
     command: Command
     now: float
+    hops: int = 1
 
 
 @dataclass(frozen=True, slots=True)
@@ -29,6 +30,7 @@ class PoseUpdateReceived:
     seq: int
     pose: Pose
     now: float
+    hops: int = 1
 
 
 @dataclass(frozen=True, slots=True)
@@ -50,6 +52,7 @@ class ConfirmReceived:
     rtt_s: float | None
     now: float
     reason: Reason = Reason.NONE
+    hops: int = 1
 
 
 @dataclass(frozen=True, slots=True)
@@ -62,6 +65,7 @@ class DataReceived:
     ref_seq: int
     data: bytes
     now: float
+    hops: int = 1
 
 
 @dataclass(frozen=True, slots=True)
@@ -82,6 +86,7 @@ class HeartbeatReceived:
     src: int
     active_command: int
     now: float
+    hops: int = 1
 
 
 @dataclass(frozen=True, slots=True)
