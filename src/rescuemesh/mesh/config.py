@@ -1,0 +1,126 @@
+"""Configuration of a mesh node: relay feature, TTL, cache size, liveness and SAR timers.
+Owns the parameters and their validation only; must not know frames, clocks or robots.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from rescuemesh.protocol import MAX_TTL
+
+
+def _positive(name: str, value: object) -> None:
+    if not (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+            and value > 0.0):
+        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+
+
+def _non_negative(name: str, value: object) -> None:
+    if not (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+            and value >= 0.0):
+        raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+
+
+def _count(name: str, value: object, low: int) -> None:
+    if not (isinstance(value, int) and not isinstance(value, bool) and value >= low):
+        raise ValueError(f"{name} must be an int >= {low}, got {value!r}")
+
+
+#: Relay Retransmit count the simulated team and the benchmarks use (Zephyr's default).
+TEAM_RELAY_RETRANSMIT_COUNT = 2
+
+
+@dataclass(frozen=True, slots=True)
+class MeshConfig:
+    """Per-robot network-layer parameters (docs/mesh.md lists every one with its source).
+
+    relay: the relay feature (Bluetooth Mesh Profile 1.0, 3.4.6.1): re-broadcast frames not for us.
+    relay_retransmit_count, relay_retransmit_interval_s: a relayed frame goes out 1 + count times,
+        interval s apart (Relay Retransmit state, Mesh Profile 4.2.20: count 0..7). 0 here (plain
+        flooding); the simulated team uses TEAM_RELAY_RETRANSMIT_COUNT = 2 at 20 ms, Zephyr's
+        default: a command then crosses 30 % loss via two relays 99.9 % of the time or better
+        (rescuemesh bench; 99.3 % with 0), at three times the relays' airtime.
+    initial_ttl: TTL the team originates frames with, in hops (0..15); used to count hops from a
+        source whose Heartbeat (which carries its own init_ttl) has not been heard.
+    cache_size: network message cache entries (Mesh Profile 1.0, 3.4.6.5; Zephyr keeps 10). 128
+        covers the life of a flood (TTL x relay delay, about 0.2 s) at a few hundred frames per
+        second, i.e. 30 robots streaming plus a segmented transfer (docs/mesh.md, "The cache").
+    cache_lifetime_s: a cache entry older than this, in s, no longer suppresses a frame: longer
+        than a flood lives, shorter than four SAR rounds (a segment's round bits repeat mod 4).
+    heartbeat_period_s, lost_after_missed: a neighbour is lost once
+        now >= last_heard + (lost_after_missed + 0.5) * heartbeat_period_s (half a period of grace).
+    neighbour_expiry_s: a neighbour unheard this long, in s, is forgotten.
+    segment_interval_s: at most one segment per interval, in s (Mesh Protocol 1.1 default 20 ms).
+    sar_ack_base_s + sar_per_hop_s * hops: receiver's ack timer, in s (Mesh Profile 1.0 3.5.3.4:
+        >= 150 + 50 * TTL ms). sar_retransmit_base_s + sar_per_hop_s * hops: sender's wait after
+        the last segment of a round, in s (3.5.3.3: >= 200 + 50 * TTL ms).
+    duplicate_ack_interval_s: a segment the receiver already holds means its last ack was lost:
+        it acks again at once, at most once per this interval, in s (docs/mesh.md, "Acks").
+    max_retransmissions: rounds without progress before giving up (Zephyr: 4).
+    incomplete_timeout_s: a reassembly that receives no new segment for this long is discarded,
+        and a completed one is remembered this long (Mesh Profile 1.0 3.5.3.4: >= 10 s).
+    max_reassemblies, max_reassemblies_per_source: concurrent reassemblies (memory bound: 8 KB
+        each at most). completed_memory: completed transfers remembered (each keeps its frame).
+    """
+
+    relay: bool = True
+    relay_retransmit_count: int = 0
+    relay_retransmit_interval_s: float = 0.02
+    initial_ttl: int = 7
+    cache_size: int = 128
+    cache_lifetime_s: float = 0.75
+    heartbeat_period_s: float = 1.0
+    lost_after_missed: int = 3
+    neighbour_expiry_s: float = 60.0
+    segment_interval_s: float = 0.02
+    sar_ack_base_s: float = 0.15
+    sar_per_hop_s: float = 0.05
+    sar_retransmit_base_s: float = 0.2
+    duplicate_ack_interval_s: float = 0.06
+    max_retransmissions: int = 4
+    incomplete_timeout_s: float = 10.0
+    max_reassemblies: int = 8
+    max_reassemblies_per_source: int = 2
+    completed_memory: int = 32
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.relay, bool):
+            raise ValueError(f"relay must be a bool, got {self.relay!r}")
+        if not (isinstance(self.initial_ttl, int) and 0 <= self.initial_ttl <= MAX_TTL):
+            raise ValueError(f"initial_ttl must be 0..{MAX_TTL} hops, got {self.initial_ttl!r}")
+        for name in ("cache_lifetime_s", "heartbeat_period_s", "neighbour_expiry_s", "segment_interval_s",
+                     "sar_ack_base_s", "sar_retransmit_base_s", "duplicate_ack_interval_s",
+                     "incomplete_timeout_s"):
+            _positive(name, getattr(self, name))
+        _non_negative("sar_per_hop_s", self.sar_per_hop_s)
+        for name in ("cache_size", "lost_after_missed", "max_reassemblies",
+                     "max_reassemblies_per_source", "completed_memory"):
+            _count(name, getattr(self, name), 1)
+        _count("max_retransmissions", self.max_retransmissions, 0)
+        if not (isinstance(self.relay_retransmit_count, int) and 0 <= self.relay_retransmit_count <= 7):
+            raise ValueError(f"relay_retransmit_count must be 0..7 (3 bits), got {self.relay_retransmit_count!r}")
+        _positive("relay_retransmit_interval_s", self.relay_retransmit_interval_s)
+        if self.max_reassemblies_per_source > self.max_reassemblies:
+            raise ValueError(
+                f"max_reassemblies_per_source ({self.max_reassemblies_per_source}) must not exceed "
+                f"max_reassemblies ({self.max_reassemblies})"
+            )
+        if self.neighbour_expiry_s <= self.lost_after_seconds:
+            raise ValueError(
+                f"neighbour_expiry_s ({self.neighbour_expiry_s!r} s) must exceed the loss time "
+                f"(lost_after_missed + 0.5) * heartbeat_period_s = {self.lost_after_seconds} s"
+            )
+
+    @property
+    def lost_after_seconds(self) -> float:
+        """Silence, in s, after which a neighbour is lost: (lost_after_missed + 0.5) * period."""
+        return (self.lost_after_missed + 0.5) * self.heartbeat_period_s
+
+    def ack_delay_s(self, hops: int) -> float:
+        """Receiver's ack timer for a source `hops` away, in s (Mesh Profile 1.0 3.5.3.4)."""
+        return self.sar_ack_base_s + self.sar_per_hop_s * hops
+
+    def retransmit_timeout_s(self, hops: int) -> float:
+        """Sender's wait after a round's last segment for a destination `hops` away, in s (3.5.3.3)."""
+        return self.sar_retransmit_base_s + self.sar_per_hop_s * hops

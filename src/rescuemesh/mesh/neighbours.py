@@ -1,0 +1,153 @@
+"""Neighbours and liveness: who was heard, how many hops away, at what RSSI, and who is lost
+(Bluetooth Mesh heartbeats; paper: "stop command execution in case of disconnecting and failing to
+reconnect"). Owns the table and the lost/found rule; must not know frames, relays or segments.
+"""
+
+# Theory of operation
+# ===================
+#
+# Every valid frame a source *originated* counts as hearing it: direct or relayed, for us or not,
+# a Heartbeat or anything else. The node tells the table (address, received TTL, now, rssi and,
+# for a Heartbeat, the init_ttl it carries); the table keeps one entry per source address (one
+# byte, so at most 255 entries):
+#
+#     hops = init_ttl(src) - ttl + 1      (1 = heard directly), at least 1
+#
+# where init_ttl(src) is the one the source's latest Heartbeat announced, or the team-wide
+# MeshConfig.initial_ttl before any Heartbeat. rssi_dbm is kept only when hops == 1: through a
+# relay the radio measured the relay, not the source.
+#
+# Liveness is a deadline per entry, lost_s = (lost_after_missed + 0.5) * heartbeat_period_s:
+#
+#     (unknown) --heard--------------------------> ALIVE  (NeighbourFound)
+#     ALIVE     --heard--------------------------> ALIVE  (deadline moves; no event)
+#     ALIVE     --now >= last_heard + lost_s------> LOST   (NeighbourLost, once)
+#     LOST      --heard--------------------------> ALIVE  (NeighbourFound)
+#     any       --now >= last_heard + expiry_s----> (forgotten; heard again = NeighbourFound)
+#
+# With a 1 s period and 3 missed heartbeats a peer last heard at t is lost at t + 3.5 s: the
+# heartbeats due at t + 1, t + 2 and t + 3 all missed, with half a period of grace for jitter and
+# relay delay on the last one. next_deadline() is the earliest of these times, so the node's timer
+# fires exactly then; is_reachable(address, now) applies the same rule without waiting for it.
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .config import MeshConfig
+from .events import NeighbourFound, NeighbourLost
+
+
+@dataclass(frozen=True, slots=True)
+class NeighbourInfo:
+    """One row of the neighbour table, for reports: hops from the latest reception, rssi_dbm of the
+    latest reception if it came directly (None otherwise), last_heard_s in s, init_ttl from the
+    latest Heartbeat (None before one)."""
+
+    address: int
+    hops: int
+    rssi_dbm: float | None
+    last_heard_s: float
+    lost: bool
+    init_ttl: int | None
+
+
+@dataclass(slots=True)
+class _Entry:
+    hops: int
+    rssi_dbm: float | None
+    last_heard_s: float
+    lost: bool
+    init_ttl: int | None
+
+
+class NeighbourTable:
+    """Sources heard, keyed by address, with the lost/found transitions of the module comment."""
+
+    def __init__(self, config: MeshConfig) -> None:
+        self._default_init_ttl = config.initial_ttl
+        self._lost_s = config.lost_after_seconds
+        self._expiry_s = config.neighbour_expiry_s
+        self._entries: dict[int, _Entry] = {}
+        self._next: float | None = None
+        self._dirty = False
+
+    def __len__(self) -> int:
+        return len(self._entries)
+
+    def hops_for(self, address: int, ttl: int, init_ttl: int | None = None) -> int:
+        """Hops a frame from `address` received with TTL `ttl` has travelled (at least 1)."""
+        if init_ttl is None:
+            entry = self._entries.get(address)
+            init_ttl = entry.init_ttl if entry is not None and entry.init_ttl is not None else None
+        if init_ttl is None:
+            init_ttl = self._default_init_ttl
+        return max(1, init_ttl - ttl + 1)
+
+    def heard(
+        self, address: int, ttl: int, now: float, rssi_dbm: float | None, init_ttl: int | None = None
+    ) -> tuple[int, NeighbourFound | None]:
+        """Record a frame originated by `address`, received with TTL `ttl` at `now` s. `init_ttl`:
+        the value a Heartbeat carries (None for other frames). Returns the hops and, on a
+        transition to ALIVE, the NeighbourFound event."""
+        entry = self._entries.get(address)
+        if init_ttl is None and entry is not None:
+            init_ttl = entry.init_ttl
+        hops = self.hops_for(address, ttl, init_ttl)
+        rssi = rssi_dbm if hops == 1 else None
+        self._dirty = True
+        if entry is None:
+            self._entries[address] = _Entry(hops, rssi, now, False, init_ttl)
+            return hops, NeighbourFound(address, hops, now)
+        found = NeighbourFound(address, hops, now) if entry.lost else None
+        entry.hops, entry.rssi_dbm, entry.last_heard_s, entry.lost = hops, rssi, now, False
+        entry.init_ttl = init_ttl
+        return hops, found
+
+    def next_deadline(self) -> float | None:
+        """Earliest time in s at which an entry is lost or forgotten, or None."""
+        if self._dirty:
+            lost_s, expiry_s = self._lost_s, self._expiry_s
+            self._next = min(
+                (e.last_heard_s + (expiry_s if e.lost else lost_s) for e in self._entries.values()),
+                default=None,
+            )
+            self._dirty = False
+        return self._next
+
+    def expire(self, now: float) -> list[NeighbourLost]:
+        """Apply every deadline passed by `now`: mark lost (one event each) and forget expired."""
+        deadline = self.next_deadline()
+        if deadline is None or deadline > now:
+            return []
+        events = []
+        for address in list(self._entries):
+            entry = self._entries[address]
+            if not entry.lost and now >= entry.last_heard_s + self._lost_s:
+                entry.lost = True
+                events.append(NeighbourLost(address, entry.last_heard_s, now))
+            if now >= entry.last_heard_s + self._expiry_s:
+                del self._entries[address]
+        self._dirty = True
+        return events
+
+    def hops_to(self, address: int) -> int | None:
+        """Hops to `address` from its latest frame (kept while lost), None if unknown or forgotten."""
+        entry = self._entries.get(address)
+        return None if entry is None else entry.hops
+
+    def init_ttl_of(self, address: int) -> int | None:
+        entry = self._entries.get(address)
+        return None if entry is None else entry.init_ttl
+
+    def is_reachable(self, address: int, now: float) -> bool:
+        """Heard, and not lost at `now` s (the lost rule applied now, timer or not)."""
+        entry = self._entries.get(address)
+        return entry is not None and not entry.lost and now < entry.last_heard_s + self._lost_s
+
+    def snapshot(self) -> list[NeighbourInfo]:
+        """Every entry, by address."""
+        return [
+            NeighbourInfo(a, e.hops, e.rssi_dbm, e.last_heard_s, e.lost, e.init_ttl)
+            for a, e in sorted(self._entries.items())
+        ]

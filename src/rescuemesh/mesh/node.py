@@ -1,0 +1,286 @@
+"""The sans-IO mesh node, one per robot, between its endpoint and its transport (aioquic shape):
+logical frames and heard frames in; transmissions, a timer and events out. Owns the receive path,
+the relay decision and the outbox; must not know radios, clocks, random numbers or payloads.
+"""
+
+# Theory of operation (relaying: Bluetooth Mesh Profile 1.0, 3.4.6; docs/mesh.md)
+# ================================================================================
+#
+# Every frame heard goes through the same steps, in this order; the first that fails drops it
+# and counts it:
+#
+#   1. check: length (10..20 bytes, up to 29 for a segment frame), version, AUTH, CRC-32, source
+#      (frames.read_on_air)                                -> dropped_corrupt / dropped_malformed
+#   2. our own frame heard back (src == our address)      -> dropped_own
+#   3. the network message cache (key: the frame without TTL nibble and CRC) -> dropped_cached
+#   4. the neighbour table hears its source (hops, rssi, a Heartbeat's init_ttl; may emit
+#      NeighbourFound)
+#   5. for us (our address or broadcast): by kind, PLAIN -> FrameDelivered, SEGMENT ->
+#      reassembly, SEGMENT_ACK -> the SAR sender
+#   6. not for our address only (unicast to another robot, or broadcast), relay feature on:
+#      TTL >= 2 -> the same bytes with TTL - 1 and a new CRC, due at now + relay_delay_s, and
+#      again relay_retransmit_count times, relay_retransmit_interval_s apart (Relay Retransmit,
+#      Mesh Profile 4.2.20: a receiver's cache drops the copies it already has);
+#      TTL < 2 -> dropped_ttl.
+#
+# A relay reads the header only (and, for metadata, a segment's SegO/SegN): it never decodes a
+# payload, so it relays message types it does not know. The caller draws relay_delay_s (Bluetooth
+# Mesh relays wait a random 0..~20 ms so that neighbours that heard the same frame do not all
+# transmit at once) from its own seeded generator; the node draws no random numbers.
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import math
+from collections import deque
+from dataclasses import dataclass
+
+from rescuemesh.protocol import (
+    BROADCAST,
+    MAX_CONTROL_FRAME_BYTES,
+    MAX_SEQ,
+    MAX_TTL,
+    MAX_UNICAST_ADDRESS,
+    PROTOCOL_VERSION,
+    FrameError,
+    FrameFlags,
+    Header,
+    IntegrityError,
+    MessageType,
+    SegmentAck,
+    decode_frame,
+    encode_frame,
+)
+
+from .cache import NetworkCache
+from .config import MeshConfig
+from .events import FrameDelivered, MeshEvent
+from .frames import FrameKind, FrameView, cache_key, read_logical, read_on_air, with_ttl
+from .neighbours import NeighbourInfo, NeighbourTable
+from .reassembly import SarReceiver
+from .sar import SarSender
+from .segments import read_segment_header
+from .stats import MeshStats
+
+_HEARTBEAT_BYTES = 12  # 6 header + active_command + init_ttl + 4 CRC (docs/protocol.md)
+_HEARTBEAT_INIT_TTL_BYTE = 7
+#: FrameError subclass -> the counter it increments (any other: dropped_malformed).
+_DROP_COUNTER: dict[type, str] = {IntegrityError: "dropped_corrupt"}
+
+
+@dataclass(frozen=True, slots=True)
+class Transmission:
+    """One frame to put on the air, with what a transport or a trace needs to know about it:
+    `ttl` as sent, `relayed` True for a frame we re-broadcast, `segment` its SegO and `segments`
+    SegN + 1 for a segment frame (None otherwise)."""
+
+    data: bytes
+    src: int
+    dst: int
+    msg_type: int
+    seq: int
+    ttl: int
+    relayed: bool
+    segment: int | None
+    segments: int | None
+
+
+class MeshNode:
+    """One robot's network layer. Drive it with:
+
+    - send(frame, now) for every frame its endpoint produces;
+    - receive(data, now, rssi_dbm=..., relay_delay_s=...) for every frame its radio hears;
+    - transmissions(now) after any of those, and when get_timer() comes, to get what to put on air;
+    - get_timer() / handle_timer(now) for relay delays, segment pacing, SAR and liveness timers;
+    - next_event() until None: FrameDelivered goes to Endpoint.receive(data, now, hops).
+    """
+
+    def __init__(self, address: int, config: MeshConfig | None = None) -> None:
+        if not (isinstance(address, int) and 0 <= address <= MAX_UNICAST_ADDRESS):
+            raise ValueError(f"address must be 0..{MAX_UNICAST_ADDRESS}, got {address!r}")
+        self.address = address
+        self.config = config if config is not None else MeshConfig()
+        self.stats = MeshStats()
+        self._cache = NetworkCache(self.config.cache_size, self.config.cache_lifetime_s)
+        self._neighbours = NeighbourTable(self.config)
+        self._events: deque[MeshEvent] = deque()
+        self._outbox: list[tuple[float, int, Transmission]] = []  # heap by (due time, order)
+        self._order = itertools.count()
+        self._ack_seq = 0  # seq of the SegmentAcks this node originates (docs/mesh.md)
+        self._sender = SarSender(
+            self.config, self.stats, self._neighbours.hops_to, self._queue_segment, self._events.append
+        )
+        self._receiver = SarReceiver(
+            self.config, self.stats, self._send_ack, self._deliver, self._neighbours.init_ttl_of
+        )
+        # what a frame for us becomes, by kind
+        self._local = {
+            FrameKind.PLAIN: self._on_plain,
+            FrameKind.SEGMENT: self._on_segment,
+            FrameKind.SEGMENT_ACK: self._on_segment_ack,
+        }
+
+    # --- from the endpoint -----------------------------------------------------------------------
+
+    def send(self, frame: bytes, now: float) -> None:
+        """Queue a logical frame our endpoint encoded: as it is up to 20 bytes, otherwise as segment
+        frames paced by the timer. Raises ValueError for bytes that are not a valid frame (length
+        10..8192, version, CRC, no SEG/AUTH flag), a frame from another source, or a segmented one
+        to the broadcast address."""
+        try:
+            view = read_logical(bytes(frame))
+        except FrameError as exc:
+            raise ValueError(f"cannot send: {exc}") from exc
+        if view.src != self.address:
+            raise ValueError(f"frame from {view.src} handed to the mesh node of {self.address}")
+        frame = bytes(frame)
+        if len(frame) <= MAX_CONTROL_FRAME_BYTES:
+            self.stats.sent += 1
+            self._push(now, Transmission(frame, view.src, view.dst, view.msg_type, view.seq,
+                                         view.ttl, False, None, None))
+        elif view.dst == BROADCAST:
+            raise ValueError("a frame longer than 20 bytes is segmented and needs a unicast destination")
+        else:
+            self.stats.sent += 1
+            self._sender.start(view, frame, now)
+
+    # --- from the radio --------------------------------------------------------------------------
+
+    def receive(
+        self, data: bytes, now: float, *, rssi_dbm: float | None = None, relay_delay_s: float = 0.0
+    ) -> None:
+        """Handle a frame heard on the air (steps in the module comment). Never raises for any
+        bytes; ValueError only for a relay_delay_s that is negative or not finite."""
+        if not (math.isfinite(relay_delay_s) and relay_delay_s >= 0.0):
+            raise ValueError(f"relay_delay_s must be finite and >= 0, got {relay_delay_s!r}")
+        stats = self.stats
+        stats.received += 1
+        data = bytes(data)
+        try:
+            view = read_on_air(data)
+        except FrameError as exc:
+            name = _DROP_COUNTER.get(type(exc), "dropped_malformed")
+            setattr(stats, name, getattr(stats, name) + 1)
+            return
+        if view.src == self.address:
+            stats.dropped_own += 1
+            return
+        if not self._cache.check_and_add(cache_key(data), now):
+            stats.dropped_cached += 1
+            return
+        hops, found = self._neighbours.heard(view.src, view.ttl, now, rssi_dbm, _announced_init_ttl(data, view))
+        if found is not None:
+            self._events.append(found)
+        if view.dst == self.address or view.dst == BROADCAST:
+            try:
+                self._local[view.kind](data, view, hops, rssi_dbm if hops == 1 else None, now)
+            except FrameError:
+                stats.dropped_malformed += 1
+        if view.dst != self.address and self.config.relay:
+            self._relay(data, view, now + relay_delay_s)
+
+    # --- the aioquic loop ------------------------------------------------------------------------
+
+    def transmissions(self, now: float) -> list[Transmission]:
+        """Everything due by `now` s (relays whose delay has passed included), oldest first."""
+        out = []
+        outbox, stats = self._outbox, self.stats
+        while outbox and outbox[0][0] <= now:
+            item = heapq.heappop(outbox)[2]
+            stats.transmitted += 1
+            stats.bytes_transmitted += len(item.data)
+            out.append(item)
+        return out
+
+    def get_timer(self) -> float | None:
+        """Earliest time in s at which handle_timer() or transmissions() has work, or None."""
+        times = [
+            self._outbox[0][0] if self._outbox else None,
+            self._sender.next_timer(),
+            self._receiver.next_timer(),
+            self._neighbours.next_deadline(),
+        ]
+        return min((t for t in times if t is not None), default=None)
+
+    def handle_timer(self, now: float) -> None:
+        """Neighbours lost or forgotten, SAR deadlines and acks, the next paced segment."""
+        self._events.extend(self._neighbours.expire(now))
+        self._receiver.handle_timer(now)
+        self._sender.handle_timer(now)
+
+    def next_event(self) -> MeshEvent | None:
+        """The oldest event not yet pulled, or None."""
+        return self._events.popleft() if self._events else None
+
+    # --- neighbours ------------------------------------------------------------------------------
+
+    def hops_to(self, address: int) -> int | None:
+        """Hops to `address` from its latest frame, None if never heard (or forgotten)."""
+        return self._neighbours.hops_to(address)
+
+    def is_reachable(self, address: int, now: float) -> bool:
+        """Heard and not lost at `now` s (docs/mesh.md, "Liveness")."""
+        return self._neighbours.is_reachable(address, now)
+
+    def neighbours(self) -> list[NeighbourInfo]:
+        """A snapshot of the neighbour table, by address."""
+        return self._neighbours.snapshot()
+
+    # --- internals -------------------------------------------------------------------------------
+
+    def _push(self, due: float, item: Transmission) -> None:
+        heapq.heappush(self._outbox, (due, next(self._order), item))
+
+    def _relay(self, data: bytes, view: FrameView, due: float) -> None:
+        if view.ttl < 2:
+            self.stats.dropped_ttl += 1
+            return
+        segment = segments = None
+        if view.kind is FrameKind.SEGMENT:
+            segment, last = read_segment_header(data)
+            segments = last + 1
+        ttl = view.ttl - 1
+        self.stats.relayed += 1
+        relayed = Transmission(with_ttl(data, ttl), view.src, view.dst, view.msg_type, view.seq, ttl, True,
+                               segment, segments)
+        interval = self.config.relay_retransmit_interval_s
+        for k in range(1 + self.config.relay_retransmit_count):  # Mesh Profile 4.2.20: Relay Retransmit
+            self._push(due + k * interval, relayed)
+
+    def _deliver(self, frame: bytes, src: int, hops: int, rssi_dbm: float | None, now: float) -> None:
+        self.stats.delivered += 1
+        self._events.append(FrameDelivered(frame, src, hops, rssi_dbm, now))
+
+    def _on_plain(self, data: bytes, view: FrameView, hops: int, rssi: float | None, now: float) -> None:
+        self._deliver(data, view.src, hops, rssi, now)
+
+    def _on_segment(self, data: bytes, view: FrameView, hops: int, rssi: float | None, now: float) -> None:
+        self._receiver.on_segment(data, view, hops, rssi, now)
+
+    def _on_segment_ack(self, data: bytes, view: FrameView, hops: int, rssi: float | None, now: float) -> None:
+        ack = decode_frame(data)[1]  # raises FrameError (counted) for a bad payload
+        self._sender.on_ack(view.src, ack.ref_seq, ack.base, ack.bitmap, now)
+
+    def _queue_segment(self, view: FrameView, data: bytes, index: int, total: int, round_: int,
+                       now: float) -> None:
+        self._push(now, Transmission(data, view.src, view.dst, view.msg_type, view.seq, view.ttl,
+                                     False, index, total))
+
+    def _send_ack(self, dst: int, ref_seq: int, base: int, bitmap: int, now: float) -> None:
+        ttl = self.config.initial_ttl
+        header = Header(PROTOCOL_VERSION, FrameFlags.NONE, ttl, 0, MessageType.SEGMENT_ACK,
+                        self.address, dst, self._ack_seq)
+        data = encode_frame(header, SegmentAck(ref_seq, base, bitmap))
+        self._push(now, Transmission(data, self.address, dst, MessageType.SEGMENT_ACK, self._ack_seq,
+                                     ttl, False, None, None))
+        self._ack_seq = (self._ack_seq + 1) & MAX_SEQ
+        self.stats.acks_sent += 1
+
+
+def _announced_init_ttl(data: bytes, view: FrameView) -> int | None:
+    """The init_ttl a Heartbeat carries (payload byte 1, frame byte 7), None for other frames."""
+    if (view.kind is FrameKind.PLAIN and view.msg_type == MessageType.HEARTBEAT
+            and len(data) == _HEARTBEAT_BYTES and data[_HEARTBEAT_INIT_TTL_BYTE] <= MAX_TTL):
+        return data[_HEARTBEAT_INIT_TTL_BYTE]
+    return None

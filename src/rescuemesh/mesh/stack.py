@@ -1,0 +1,102 @@
+"""A robot's network stack: its protocol endpoint on its mesh node, with the aioquic API a transport
+pumps. Owns the glue only: frames down into the node, delivered frames up into the endpoint with
+their hop count, hop counts into confirm timeouts, network events out. Must not know radios or clocks.
+"""
+
+from __future__ import annotations
+
+from collections import Counter, deque
+
+from rescuemesh.protocol import Endpoint
+
+from .events import FrameDelivered, MeshEvent, NeighbourFound, NeighbourLost, TransferComplete, TransferFailed
+from .node import MeshNode, Transmission
+
+
+class NetworkStack:
+    """Endpoint over MeshNode. A transport calls `receive`, `transmissions` (or `frames_to_send`),
+    `get_timer` and `handle_timer`; the robot reads `endpoint.next_event()` for protocol events and
+    `next_event()` here for network events (NeighbourFound, NeighbourLost, TransferComplete,
+    TransferFailed)."""
+
+    def __init__(self, endpoint: Endpoint, node: MeshNode) -> None:
+        if endpoint.address != node.address:
+            raise ValueError(f"endpoint {endpoint.address} and mesh node {node.address} differ")
+        self.endpoint = endpoint
+        self.node = node
+        self.hops_histogram: Counter[int] = Counter()  # frames delivered to us, by hops crossed
+        self._events: deque[MeshEvent] = deque()
+        self._path_hops: dict[int, int] = {}
+        self._on_event = {
+            FrameDelivered: self._deliver,
+            NeighbourFound: self._found,
+            NeighbourLost: self._events.append,
+            TransferComplete: self._events.append,
+            TransferFailed: self._events.append,
+        }
+
+    @property
+    def address(self) -> int:
+        return self.endpoint.address
+
+    # --- the transport's side ------------------------------------------------------------------
+
+    def receive(self, data: bytes, now: float, *, rssi_dbm: float | None = None, relay_delay_s: float = 0.0) -> None:
+        """A frame heard on the air (never raises for any bytes)."""
+        self.node.receive(data, now, rssi_dbm=rssi_dbm, relay_delay_s=relay_delay_s)
+        self._drain()
+
+    def transmissions(self, now: float) -> list[Transmission]:
+        """What to put on the air now: the endpoint's new frames (segmented as needed), relays."""
+        for frame in self.endpoint.frames_to_send(now):
+            self.node.send(frame, now)
+        return self.node.transmissions(now)
+
+    def frames_to_send(self, now: float) -> list[bytes]:
+        """The same as bytes only, for transports that need no metadata (BLE, Zenoh)."""
+        return [t.data for t in self.transmissions(now)]
+
+    def get_timer(self) -> float | None:
+        timers = [t for t in (self.endpoint.get_timer(), self.node.get_timer()) if t is not None]
+        return min(timers) if timers else None
+
+    def handle_timer(self, now: float) -> None:
+        timer = self.endpoint.get_timer()
+        if timer is not None and timer <= now:
+            self.endpoint.handle_timer(now)
+        timer = self.node.get_timer()
+        if timer is not None and timer <= now:
+            self.node.handle_timer(now)
+            self._drain()
+
+    # --- the robot's side ----------------------------------------------------------------------
+
+    def next_event(self) -> MeshEvent | None:
+        """The oldest network event not yet pulled (frames for us go to the endpoint instead)."""
+        return self._events.popleft() if self._events else None
+
+    def is_reachable(self, address: int, now: float) -> bool:
+        return self.node.is_reachable(address, now)
+
+    def hops_to(self, address: int) -> int | None:
+        return self.node.hops_to(address)
+
+    # --- internals -----------------------------------------------------------------------------
+
+    def _drain(self) -> None:
+        while (event := self.node.next_event()) is not None:
+            self._on_event[type(event)](event)
+
+    def _deliver(self, event: FrameDelivered) -> None:
+        self.hops_histogram[event.hops] += 1
+        self._note_hops(event.src, event.hops)
+        self.endpoint.receive(event.data, event.now, event.hops)
+
+    def _found(self, event: NeighbourFound) -> None:
+        self._note_hops(event.address, event.hops)
+        self._events.append(event)
+
+    def _note_hops(self, address: int, hops: int) -> None:
+        if self._path_hops.get(address) != hops:
+            self._path_hops[address] = hops
+            self.endpoint.set_path_hops(address, hops)
