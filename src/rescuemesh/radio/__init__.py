@@ -1,8 +1,33 @@
-"""Radio channel models: who hears whom, and when (simulation only).
+"""Radio channel models: the physics of one frame from one place to another (simulation only).
 
-Owns: ChannelModel and its registry. Must not know: frame contents, endpoints, robots.
+Owns: ChannelModel and its registry, DiscChannel ("disc") and BleChannel ("ble", the default).
+Must not know: frame contents, queues, collisions, endpoints, robots (transport/'s medium does).
 """
 
-from rescuemesh.radio.channel import CHANNELS, ChannelModel, RangeLossChannel, make_channel
+from rescuemesh.radio.channel import (
+    CHANNELS,
+    DEFAULT_CHANNEL,
+    ChannelModel,
+    DiscChannel,
+    LossCause,
+    Reception,
+    ble_adv_airtime_s,
+    make_channel,
+    register_channel,
+)
+from rescuemesh.radio.ble import BleChannel, BleParams, LinkBudget  # noqa: E402  (registers "ble")
 
-__all__ = ["CHANNELS", "ChannelModel", "RangeLossChannel", "make_channel"]
+__all__ = [
+    "CHANNELS",
+    "DEFAULT_CHANNEL",
+    "BleChannel",
+    "BleParams",
+    "ChannelModel",
+    "DiscChannel",
+    "LinkBudget",
+    "LossCause",
+    "Reception",
+    "ble_adv_airtime_s",
+    "make_channel",
+    "register_channel",
+]

@@ -1,0 +1,308 @@
+"""BleChannel: a Bluetooth LE advertising link in an office, from link budget to one frame's fate.
+
+Owns: the BLE link budget (transmit power, antenna gains, indoor path loss, walls, shadowing),
+the per-frame draw (Rician fading, then the packet-error curve) and its expectation. Must not know:
+queues, collisions, the extra loss (the medium's), frame contents, the clock.
+
+Theory of operation (every figure's source is on BleParams and in docs/radio.md):
+
+    P_mean(tx, rx) = P_tx + G_tx + G_rx - PL(d) - n_walls * L_wall - S(tx, rx)        [dBm]
+    PL(d)          = 20 log10(f_MHz) - 28 + 10 n log10(max(d, d_min))     (ITU-R P.1238, no floors)
+    n_walls        = walls the straight segment tx -> rx crosses on the map grid  (radio/walls.py)
+    S              = seeded, spatially correlated log-normal shadowing            (radio/shadowing.py)
+    per frame:  rssi = P_mean + 10 log10(g),  g ~ Rician(K), mean 1               (radio/fading.py)
+                lost with probability PER(rssi - P_sens, frame bytes)            (radio/per.py)
+
+A receiver whose mean power is more than `out_of_range_margin_db` below the sensitivity is out of
+range: nothing is drawn, it cannot receive, and it is not `audible` (the medium skips it, so it
+cannot be disturbed by the frame either).
+
+Positions are quantised to the centre of the grid cell holding them (no grid: a 5 cm lattice)
+before anything is computed, so the mean power of a pair of cells is computed once and cached
+(LRU), and it is symmetric: P_mean(a, b) == P_mean(b, a). `reception` then costs one cache look-up,
+one `rng.random(3)` and a few `math` calls. `delivery_probability` reads a table of the expected
+delivery against the margin over sensitivity, built once per frame size by averaging 1 - PER over
+the exact fading distribution.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields, replace
+from functools import lru_cache
+from typing import Any, ClassVar
+
+import numpy as np
+
+from rescuemesh.maps.grid import OccupancyGrid
+from rescuemesh.radio.channel import ChannelModel, LossCause, Point, Reception, ble_adv_airtime_s, register_channel
+from rescuemesh.radio.fading import gain_db_distribution, rician_gain_from_uniforms
+from rescuemesh.radio.per import crc_covered_bits, packet_error_rate, packet_error_rate_scalar
+from rescuemesh.radio.shadowing import ShadowField
+from rescuemesh.radio.walls import count_walls, count_walls_many
+
+#: Position quantum in m when the channel has no map grid.
+DEFAULT_QUANTUM_M = 0.05
+#: Pairs of cells whose mean power is kept (LRU). 30 robots make 435 pairs; moving ones make more.
+DEFAULT_CACHE_PAIRS = 1 << 16
+#: Resolution in dB of the expected-delivery table, and how far above sensitivity it reaches
+#: (beyond, its last value is used: within 1e-6 of the truth even for Rayleigh fading).
+_TABLE_STEP_DB = 0.01
+_TABLE_TOP_DB = 60.0
+
+
+@dataclass(frozen=True)
+class BleParams:
+    """Every parameter of BleChannel. Sources and the calibration in docs/radio.md.
+
+    - `tx_power_dbm`: 0 dBm, the usual default of BLE modules (anchors; Class 2 allows 4 dBm).
+    - `tx_antenna_gain_dbi`, `rx_antenna_gain_dbi`: -2 dBi each, a small chip/PCB antenna on a
+      robot (stated assumption: such antennas have about -3..+1 dBi peak, less on average over
+      directions and with a robot body next to them).
+    - `sensitivity_dbm`: -93 dBm at 0.1 % BER (Core Vol 6 Part A 4.1 asks -70 dBm or better;
+      modules are -90..-97 dBm, anchors). Where in that range: set by the calibration.
+    - `frequency_mhz`: 2440 MHz, the middle of the 2.4 GHz band (advertising channels 37, 38,
+      39 are at 2402, 2426, 2480 MHz); sets PL(1 m) = 20 log10(f_MHz) - 28 = 39.75 dB (P.1238).
+    - `path_loss_exponent`: 4.0, the plane-earth (two-ray) law beyond the breakpoint
+      4 h_t h_r / lambda ~ 1.3 m for antennas ~0.2 m above the floor (Rappaport, Wireless
+      Communications, 2nd ed., 4.6). ITU-R P.1238 Table 2 gives N = 30 (n = 3.0) for offices
+      with antennas at desk height; with n = 3 the calibration goals cannot all hold.
+    - `min_distance_m`: 1 m, the distance P.1238's reference loss is given at; closer is 1 m.
+    - `wall_loss_db`: 4.6 dB per wall crossed, COST 231 multi-wall model (Final Report 4.7:
+      light 3.4 dB, heavy 6.9 dB; anchors: heavy/concrete 7-15 dB); where in that range: set by
+      the calibration (the office's 10 cm interior partitions).
+    - `shadowing_sigma_db`: 4 dB, WINNER II D1.1.2 Tables 4-4/4-5, indoor office A1 NLOS (a
+      model that, like this one, counts walls explicitly). 0 disables shadowing.
+    - `shadowing_decorrelation_m`: 4 m, WINNER II D1.1.2 Table 4-5, A1 NLOS shadow-fading
+      correlation distance (Gudmundson's exponential model); the lattice spacing of the field.
+    - `rician_k`: 5.0 (7.0 dB) linear K-factor of the per-frame fading, the mean of WINNER II
+      A1 LOS (7 dB, spread 6 dB); 0 is Rayleigh.
+    - `out_of_range_margin_db`: 20 dB. A receiver whose mean power is more than this below the
+      sensitivity is out of range: not audible, OUT_OF_RANGE, delivery 0. Delivering from there
+      would need a fading gain of ~17 dB (Rayleigh: P = e^-50); and an interferer that weak cannot
+      spoil a frame received near sensitivity, which the spec asks to survive a co-channel
+      interferer 21 dB below it (C/I 21 dB, Core Vol 6 Part A 4.2).
+    """
+
+    tx_power_dbm: float = 0.0
+    tx_antenna_gain_dbi: float = -2.0
+    rx_antenna_gain_dbi: float = -2.0
+    sensitivity_dbm: float = -93.0
+    frequency_mhz: float = 2440.0
+    path_loss_exponent: float = 4.0
+    min_distance_m: float = 1.0
+    wall_loss_db: float = 4.6
+    shadowing_sigma_db: float = 4.0
+    shadowing_decorrelation_m: float = 4.0
+    rician_k: float = 5.0
+    out_of_range_margin_db: float = 20.0
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            try:
+                number = float(value)
+            except (TypeError, ValueError):
+                raise ValueError(f"{f.name} must be a number, got {value!r}") from None
+            if not math.isfinite(number):
+                raise ValueError(f"{f.name} must be finite, got {value!r}")
+            object.__setattr__(self, f.name, number)
+        positive = ("frequency_mhz", "path_loss_exponent", "min_distance_m", "shadowing_decorrelation_m")
+        for name in positive:
+            if not getattr(self, name) > 0.0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
+        for name in ("wall_loss_db", "shadowing_sigma_db", "rician_k", "out_of_range_margin_db"):
+            if not getattr(self, name) >= 0.0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+
+    @property
+    def reference_loss_db(self) -> float:
+        """PL(1 m) = 20 log10(f_MHz) - 28 dB (ITU-R P.1238): 39.75 dB at 2440 MHz."""
+        return 20.0 * math.log10(self.frequency_mhz) - 28.0
+
+    @property
+    def rician_k_db(self) -> float:
+        return 10.0 * math.log10(self.rician_k) if self.rician_k > 0 else -math.inf
+
+
+@dataclass(frozen=True, slots=True)
+class LinkBudget:
+    """The terms of P_mean for one pair of places (for docs, maps and tests), in m and dB."""
+
+    distance_m: float
+    path_loss_db: float
+    walls: int
+    wall_loss_db: float
+    shadow_db: float
+    mean_rx_power_dbm: float
+    margin_db: float  # mean power minus sensitivity
+
+
+@register_channel
+class BleChannel(ChannelModel):
+    """BLE 1M advertising on an office map: P.1238 path loss, COST 231 walls, shadowing, Rician fading.
+
+    `BleChannel(grid, seed=0, params=BleParams(...))`; `grid` is the map's OccupancyGrid (None: no
+    walls), `seed` fixes the shadowing field. Build by name with `make_channel("ble", grid=...,
+    seed=..., **overrides)`.
+    """
+
+    name: ClassVar[str] = "ble"
+
+    def __init__(self, grid: OccupancyGrid | None = None, *, seed: int = 0, params: BleParams | None = None,
+                 cache_pairs: int = DEFAULT_CACHE_PAIRS) -> None:
+        self.grid = grid
+        self.seed = int(seed)
+        self.params = params if params is not None else BleParams()
+        p = self.params
+        self.shadow = ShadowField(self.seed, p.shadowing_sigma_db, p.shadowing_decorrelation_m)
+        if grid is not None:
+            self._quantum, self._ox, self._oy = float(grid.resolution), float(grid.origin_x), float(grid.origin_y)
+        else:
+            self._quantum, self._ox, self._oy = DEFAULT_QUANTUM_M, 0.0, 0.0
+        self._sens = p.sensitivity_dbm
+        self._floor = p.sensitivity_dbm - p.out_of_range_margin_db  # audible iff mean power >= this
+        self._k = p.rician_k
+        self._mean_power_cells = lru_cache(maxsize=cache_pairs)(self._compute_mean_power_cells)
+        self._tables: dict[int, np.ndarray] = {}
+        self._bits: dict[int, int] = {}
+
+    # --- registry --------------------------------------------------------------------------------
+    @classmethod
+    def param_names(cls) -> list[str]:
+        return [f.name for f in fields(BleParams)]
+
+    @classmethod
+    def from_params(cls, *, grid: OccupancyGrid | None, seed: int, **params: Any) -> BleChannel:
+        return cls(grid, seed=seed, params=BleParams(**params))
+
+    def with_params(self, **changes: Any) -> BleChannel:
+        """A channel on the same map and seed with some parameters changed."""
+        return BleChannel(self.grid, seed=self.seed, params=replace(self.params, **changes))
+
+    # --- geometry and the deterministic link budget ----------------------------------------------
+    def _cell(self, xy: Point) -> tuple[int, int]:
+        q = self._quantum
+        return (math.floor((xy[0] - self._ox) / q), math.floor((xy[1] - self._oy) / q))
+
+    def _centre(self, i: int, j: int) -> tuple[float, float]:
+        q = self._quantum
+        return (self._ox + (i + 0.5) * q, self._oy + (j + 0.5) * q)
+
+    def link_budget(self, tx_xy: Point, rx_xy: Point) -> LinkBudget:
+        """The terms of the mean received power between the cells holding tx and rx."""
+        a, b = sorted((self._cell(tx_xy), self._cell(rx_xy)))
+        pa, pb = self._centre(*a), self._centre(*b)
+        p = self.params
+        d = math.hypot(pb[0] - pa[0], pb[1] - pa[1])
+        path_loss = p.reference_loss_db + 10.0 * p.path_loss_exponent * math.log10(max(d, p.min_distance_m))
+        walls = count_walls(self.grid, pa, pb) if self.grid is not None else 0
+        shadow = self.shadow.link_db(pa, pb)
+        power = p.tx_power_dbm + p.tx_antenna_gain_dbi + p.rx_antenna_gain_dbi - path_loss \
+            - walls * p.wall_loss_db - shadow
+        return LinkBudget(d, path_loss, walls, walls * p.wall_loss_db, shadow, power, power - self._sens)
+
+    def _compute_mean_power_cells(self, ai: int, aj: int, bi: int, bj: int) -> float:
+        return self.link_budget(self._centre(ai, aj), self._centre(bi, bj)).mean_rx_power_dbm
+
+    def mean_rx_power_dbm(self, tx_xy: Point, rx_xy: Point) -> float:
+        q = self._quantum
+        ai = math.floor((tx_xy[0] - self._ox) / q)
+        aj = math.floor((tx_xy[1] - self._oy) / q)
+        bi = math.floor((rx_xy[0] - self._ox) / q)
+        bj = math.floor((rx_xy[1] - self._oy) / q)
+        if (bi, bj) < (ai, aj):
+            return self._mean_power_cells(bi, bj, ai, aj)
+        return self._mean_power_cells(ai, aj, bi, bj)
+
+    def mean_rx_power_map(self, tx_xy: Point, rx_xy: np.ndarray) -> np.ndarray:
+        """Mean power from tx to each point (shape (N, 2)); vectorised, same model as above.
+
+        Walls are counted from tx outwards; this differs from the scalar only for a point inside
+        an obstacle (the scalar counts from the lower cell index).
+        """
+        pts = np.asarray(rx_xy, dtype=float).reshape(-1, 2)
+        q = self._quantum
+        tc = self._centre(*self._cell(tx_xy))
+        cells = np.floor((pts - (self._ox, self._oy)) / q)
+        centres = (self._ox, self._oy) + (cells + 0.5) * q
+        p = self.params
+        d = np.hypot(centres[:, 0] - tc[0], centres[:, 1] - tc[1])
+        path_loss = p.reference_loss_db + 10.0 * p.path_loss_exponent * np.log10(np.maximum(d, p.min_distance_m))
+        walls = count_walls_many(self.grid, tc, centres) if self.grid is not None else np.zeros(len(pts))
+        shadow = self.shadow.link_db_many(tc, centres)
+        return p.tx_power_dbm + p.tx_antenna_gain_dbi + p.rx_antenna_gain_dbi - path_loss \
+            - walls * p.wall_loss_db - shadow
+
+    # --- the interface ---------------------------------------------------------------------------
+    def airtime_s(self, frame_bytes: int) -> float:
+        return ble_adv_airtime_s(frame_bytes)
+
+    def audible(self, tx_xy: Point, rx_xy: Point) -> bool:
+        return self.mean_rx_power_dbm(tx_xy, rx_xy) >= self._floor
+
+    def reception(self, tx_xy: Point, rx_xy: Point, frame_bytes: int, rng: np.random.Generator) -> Reception:
+        mean = self.mean_rx_power_dbm(tx_xy, rx_xy)
+        if mean < self._floor:
+            return Reception(False, mean, LossCause.OUT_OF_RANGE)
+        bits = self._bits.get(frame_bytes)
+        if bits is None:
+            bits = self._bits[frame_bytes] = crc_covered_bits(frame_bytes)
+        u_radius, u_angle, u_error = rng.random(3).tolist()
+        gain = rician_gain_from_uniforms(u_radius, u_angle, self._k)
+        if gain <= 0.0:
+            return Reception(False, -math.inf, LossCause.BIT_ERRORS)
+        rssi = mean + 10.0 * math.log10(gain)
+        if u_error < packet_error_rate_scalar(rssi - self._sens, bits):
+            return Reception(False, rssi, LossCause.BIT_ERRORS)
+        return Reception(True, rssi, None)
+
+    def delivery_probability(self, tx_xy: Point, rx_xy: Point, frame_bytes: int) -> float:
+        margin = self.mean_rx_power_dbm(tx_xy, rx_xy) - self._sens
+        return float(self._delivery_at_margin(np.asarray([margin]), frame_bytes)[0])
+
+    def delivery_probability_map(self, tx_xy: Point, rx_xy: np.ndarray, frame_bytes: int) -> np.ndarray:
+        return self._delivery_at_margin(self.mean_rx_power_map(tx_xy, rx_xy) - self._sens, frame_bytes)
+
+    def delivery_at_margin(self, margin_db, frame_bytes: int):
+        """Expected delivery over fading for a mean power `margin_db` dB above sensitivity."""
+        out = self._delivery_at_margin(np.asarray(margin_db, dtype=float).reshape(-1), frame_bytes)
+        return float(out[0]) if np.ndim(margin_db) == 0 else out.reshape(np.shape(margin_db))
+
+    def _delivery_at_margin(self, margin: np.ndarray, frame_bytes: int) -> np.ndarray:
+        table = self._tables.get(frame_bytes)
+        if table is None:
+            table = self._tables[frame_bytes] = self._delivery_table(frame_bytes)
+        low = -self.params.out_of_range_margin_db
+        x = (margin - low) / _TABLE_STEP_DB
+        out = np.interp(x, np.arange(len(table)), table)
+        return np.where(margin < low, 0.0, out)
+
+    def _delivery_table(self, frame_bytes: int) -> np.ndarray:
+        """E_g[1 - PER(m + 10 log10 g)] for m from -out_of_range_margin to +60 dB, every 0.01 dB."""
+        step = _TABLE_STEP_DB
+        gain_db, mass = gain_db_distribution(self._k, step_db=step)
+        low = -self.params.out_of_range_margin_db
+        n_margin = int(round((_TABLE_TOP_DB - low) / step)) + 1
+        # success at m_j + x_i = low + gain_db[0] + (i + j) * step, for every i + j
+        shifted = low + gain_db[0] + step * np.arange(n_margin + len(gain_db) - 1)
+        success = 1.0 - packet_error_rate(shifted, frame_bytes)
+        table = np.correlate(success, mass, mode="valid")
+        return np.clip(table, 0.0, 1.0)
+
+    def settings(self) -> dict[str, Any]:
+        p = self.params
+        return {"name": self.name, **asdict(p), "seed": self.seed,
+                "reference_loss_db": round(p.reference_loss_db, 4),
+                "rician_k_db": round(p.rician_k_db, 4) if p.rician_k > 0 else None,
+                "position_quantum_m": self._quantum, "walls_from_map": self.grid is not None}
+
+    def describe(self) -> str:
+        p = self.params
+        k = f"K {p.rician_k_db:.1f} dB" if p.rician_k > 0 else "Rayleigh"
+        return (f"ble: Ptx {p.tx_power_dbm:g} dBm, G {p.tx_antenna_gain_dbi:g}/{p.rx_antenna_gain_dbi:g} dBi, "
+                f"sens {p.sensitivity_dbm:g} dBm, n {p.path_loss_exponent:g}, wall {p.wall_loss_db:g} dB, "
+                f"σ {p.shadowing_sigma_db:g} dB/{p.shadowing_decorrelation_m:g} m, {k}, seed {self.seed}")
+
+    def __repr__(self) -> str:
+        return f"BleChannel(grid={'yes' if self.grid is not None else 'None'}, seed={self.seed}, params={self.params})"
