@@ -1,8 +1,9 @@
-"""Transports: thin pumps that move protocol frames between sans-IO endpoints.
+"""Transports: thin pumps that move frames between sans-IO network stacks.
 
-Owns: the in-process simulated radio link (later: Zenoh, BLE, ROS). Must not know: robots, behaviours.
+Owns: the simulated radio medium (airtime, queues, collisions), the BLE bearer (bumble, in
+transport.ble, imported on demand). Must not know: robots, behaviours, what frames mean.
 """
 
-from rescuemesh.transport.sim_link import FrameEndpoint, LinkStats, RadioRecord, SimRadioLink
+from rescuemesh.transport.sim_medium import AirRecord, AirTiming, MediumStats, NetworkStack, SimMedium
 
-__all__ = ["FrameEndpoint", "LinkStats", "RadioRecord", "SimRadioLink"]
+__all__ = ["AirRecord", "AirTiming", "MediumStats", "NetworkStack", "SimMedium"]

@@ -1,0 +1,426 @@
+"""The simulated radio medium: BLE advertising airtime, one transmit queue per radio, collisions at
+each receiver, and a discrete-event pump around the robots' sans-IO network stacks.
+
+Owns: when each frame is on the air, who hears it, collisions, the extra `--loss`, per-pair random
+streams, the one timer heap, statistics and records. Must not know: frame contents (it reads the
+metadata the mesh layer attaches to each Transmission, never the bytes), robots, physics.
+"""
+
+# Theory of operation
+# ===================
+#
+# Everything happens at event times on one heap, so a frame's fate never depends on the 50 ms
+# control tick. Three kinds of event:
+#
+#   TX_START  a radio starts its next queued frame. The frame occupies the air for the channel's
+#             airtime (a legacy advertisement on the three advertising channels, about 1.1 ms).
+#             For every other radio that can hear it at all (channel.audible), a reception is
+#             opened over [start, end] with the channel's verdict for that frame (fading, PER).
+#             Receptions that overlap at one receiver collide: each is lost unless it is stronger
+#             than the other by the co-channel rejection ratio (capture). Every advertiser sends
+#             its three PDUs on channels 37, 38, 39 in that order and a scanner listens on one
+#             channel, so two events collide only when their starts are closer than one PDU (a
+#             third of the event); events further apart meet on different channels. A radio that
+#             transmits cannot receive at all during its event (half duplex).
+#   ARRIVAL   a reception ends: if nothing spoiled it and the extra --loss draw passes, the
+#             receiver's stack gets the bytes (with the RSSI and a random relay delay drawn here,
+#             since the sans-IO mesh layer draws no random numbers).
+#   TIMER     a stack's timer is due (resends, segments, relays, neighbour expiry).
+#
+# After any call into a stack, its new transmissions are queued on its radio and its timer is
+# re-read and pushed on the heap if it changed (stale heap entries are skipped when popped): no
+# scan of every stack per event. A radio starts a frame at max(now, previous start + advertising
+# interval) + advDelay, as a BLE advertiser does (Core Vol 6 Part B 4.4.2.2.1).
+#
+# Randomness: advDelay and relay delays come from a stream per radio; fading and PER draws from a
+# stream per ordered pair (sender, receiver), and the extra --loss from another: adding a robot
+# that no one hears changes nothing for the others. Same seed, same run.
+
+from __future__ import annotations
+
+import heapq
+import itertools
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from enum import IntEnum
+from typing import Protocol
+
+import numpy as np
+
+from rescuemesh.protocol import BROADCAST
+from rescuemesh.radio import ChannelModel, LossCause, Reception
+from rescuemesh.radio.channel import ADV_CHANNELS
+
+#: At most this many events in one pump: a runaway guard.
+MAX_EVENTS_PER_PUMP = 1_000_000
+
+
+@dataclass(frozen=True)
+class AirTiming:
+    """Advertiser timing, in s.
+
+    adv_interval_s: least time between the starts of two frames from one radio: 20 ms, the minimum
+        advertising interval of non-connectable advertising since Bluetooth 5.0 (Core Vol 6 Part B
+        4.4.2.2.1) and Mesh 1.1's segment interval.
+    adv_delay_max_s: advDelay, a pseudo-random 0..10 ms added before every advertising event (same
+        section), so that two advertisers do not collide forever.
+    relay_delay_max_s: a relay re-broadcasts after a random 0..10 ms (Mesh Profile 3.4.6.3, "a small
+        random delay"), drawn here and handed to the mesh layer.
+    capture_db: a reception survives an overlapping one if it is at least this much stronger: 21 dB,
+        the co-channel rejection a BLE receiver must meet (Core Vol 6 Part A 4.2, C/I co-channel).
+    """
+
+    adv_interval_s: float = 0.020
+    adv_delay_max_s: float = 0.010
+    relay_delay_max_s: float = 0.010
+    capture_db: float = 21.0
+
+    def __post_init__(self) -> None:
+        for name in ("adv_interval_s", "adv_delay_max_s", "relay_delay_max_s", "capture_db"):
+            if not getattr(self, name) >= 0.0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+
+
+class NetworkStack(Protocol):
+    """What the medium needs of a robot's stack (rescuemesh.mesh.NetworkStack has it)."""
+
+    def receive(self, data: bytes, now: float, *, rssi_dbm: float | None = None,
+                relay_delay_s: float = 0.0) -> None: ...
+    def transmissions(self, now: float) -> list: ...  # rescuemesh.mesh.Transmission
+    def get_timer(self) -> float | None: ...
+    def handle_timer(self, now: float) -> None: ...
+
+
+@dataclass
+class MediumStats:
+    """Counts over the whole run. A transmission is one frame put on the air by one radio (an
+    original, a relay or a segment); a reception is one transmission at one other radio that could
+    hear it, or at its intended receiver (the destination, or every radio for a broadcast) even
+    when that one could not (counted lost out of range or radio off)."""
+
+    transmissions: int = 0
+    relayed_transmissions: int = 0
+    segment_transmissions: int = 0
+    bytes_on_air: int = 0
+    max_frame_bytes: int = 0
+    airtime_s: float = 0.0
+    dropped_radio_off: int = 0  # frames a silent radio did not send
+    receptions_delivered: int = 0
+    receptions_lost: dict[str, int] = field(default_factory=lambda: {cause.value: 0 for cause in LossCause})
+    unicast_delivered: int = 0
+    unicast_lost: int = 0
+    broadcast_delivered: int = 0
+    broadcast_lost: int = 0
+
+    @property
+    def collisions(self) -> int:
+        return self.receptions_lost[LossCause.COLLISION.value]
+
+    def as_dict(self) -> dict:
+        return {
+            "transmissions": self.transmissions,
+            "relayed_transmissions": self.relayed_transmissions,
+            "segment_transmissions": self.segment_transmissions,
+            "bytes_on_air": self.bytes_on_air,
+            "max_frame_bytes": self.max_frame_bytes,
+            "airtime_s": round(self.airtime_s, 4),
+            "dropped_radio_off": self.dropped_radio_off,
+            "receptions_delivered": self.receptions_delivered,
+            "receptions_lost": dict(self.receptions_lost),
+            "collisions": self.collisions,
+            "unicast_delivered": self.unicast_delivered,
+            "unicast_lost": self.unicast_lost,
+            "broadcast_delivered": self.broadcast_delivered,
+            "broadcast_lost": self.broadcast_lost,
+        }
+
+
+@dataclass(slots=True)
+class AirRecord:
+    """One transmission, for timelines: on the air over [start_s, end_s] from `transmitter`.
+    `dst_heard`: whether the destination received this very transmission (None for a broadcast);
+    `heard_by`: how many radios received it; `collided`: whether a collision spoiled any reception."""
+
+    start_s: float
+    end_s: float
+    transmitter: int
+    src: int
+    dst: int
+    msg_type: int
+    relayed: bool
+    segment: int | None
+    frame: bytes
+    dst_heard: bool | None = None
+    heard_by: int = 0
+    collided: bool = False
+
+
+class _Event(IntEnum):
+    """Event kinds; at equal times a reception ends before a timer fires before a frame starts
+    (intervals are half-open: a frame that ends at t does not collide with one that starts at t)."""
+
+    ARRIVAL = 0
+    TIMER = 1
+    TX_START = 2
+
+
+@dataclass(slots=True)
+class _Radio:
+    address: int
+    stack: NetworkStack
+    position: Callable[[], tuple[float, float]]
+    rng: np.random.Generator
+    enabled: bool = True
+    queue: deque = field(default_factory=deque)
+    tx_scheduled: bool = False
+    next_allowed_s: float = float("-inf")
+    on_air_until: float = float("-inf")
+    receiving: list = field(default_factory=list)
+
+
+@dataclass(slots=True)
+class _Reception:
+    transmission: object  # rescuemesh.mesh.Transmission
+    sender: _Radio
+    receiver: _Radio
+    start: float
+    end: float
+    verdict: Reception
+    record: AirRecord | None
+    lost: LossCause | None = None
+
+
+class SimMedium:
+    """Moves frames between attached stacks in simulated time, through a channel model.
+
+    `flush(now)` queues what the stacks have to send (call it after the brains ran); `pump(now)`
+    processes, in time order, every frame start, reception and stack timer due by `now`.
+    """
+
+    def __init__(self, channel: ChannelModel, seed: int, *, extra_loss: float = 0.0,
+                 timing: AirTiming | None = None, record: bool = False) -> None:
+        if not 0.0 <= extra_loss < 1.0:
+            raise ValueError(f"extra loss must be in [0, 1), got {extra_loss!r}")
+        self.channel = channel
+        self.timing = timing or AirTiming()
+        self.extra_loss = extra_loss
+        self.stats = MediumStats()
+        self.records: list[AirRecord] | None = [] if record else None
+        self._seed = int(seed)
+        self._radios: dict[int, _Radio] = {}
+        self._heap: list = []
+        self._order = itertools.count()
+        self._timer_at: dict[int, float] = {}
+        self._pair_rngs: dict[tuple[int, int, int], np.random.Generator] = {}
+        self._now = 0.0
+
+    # --- set-up ------------------------------------------------------------------------------
+
+    def attach(self, address: int, stack: NetworkStack, position: Callable[[], tuple[float, float]]) -> None:
+        if address in self._radios:
+            raise ValueError(f"address {address} is already attached")
+        self._radios[address] = _Radio(address, stack, position, self._stream(1, address))
+
+    def set_radio_enabled(self, address: int, enabled: bool, now: float) -> None:
+        """Switch a radio off (it neither sends nor hears; its queued frames are dropped) or on."""
+        radio = self._radio(address)
+        radio.enabled = bool(enabled)
+        if not enabled:
+            self.stats.dropped_radio_off += len(radio.queue)
+            radio.queue.clear()
+            for reception in radio.receiving:
+                if reception.end > now:
+                    reception.lost = reception.lost or LossCause.RADIO_OFF
+
+    def radio_enabled(self, address: int) -> bool:
+        return self._radio(address).enabled
+
+    # --- the pump ------------------------------------------------------------------------------
+
+    def flush(self, now: float) -> None:
+        """Queue, stamped `now`, every frame the stacks have to send (call it after the brains ran
+        at `now`, the time the medium was last pumped to)."""
+        self._now = max(self._now, now)
+        for radio in self._radios.values():
+            self._collect(radio, self._now)
+
+    def pump(self, now: float) -> None:
+        """Advance the medium to `now`: every event due by then, in time order. Frames the stacks
+        queued since the last pump or flush leave at that earlier time."""
+        self.flush(self._now)
+        heap = self._heap
+        for _ in range(MAX_EVENTS_PER_PUMP):
+            if not heap or heap[0][0] > now:
+                self._now = max(self._now, now)
+                return
+            at, kind, _, payload = heapq.heappop(heap)
+            self._now = at
+            if kind is _Event.ARRIVAL:
+                self._arrive(payload, at)
+            elif kind is _Event.TIMER:
+                self._fire_timer(payload, at)
+            else:
+                self._start_transmission(payload, at)
+        raise RuntimeError(f"radio medium: more than {MAX_EVENTS_PER_PUMP} events in one pump (runaway timers?)")
+
+    # --- internals -----------------------------------------------------------------------------
+
+    def _radio(self, address: int) -> _Radio:
+        try:
+            return self._radios[address]
+        except KeyError:
+            raise ValueError(f"no radio with address {address}") from None
+
+    def _stream(self, *key: int) -> np.random.Generator:
+        return np.random.default_rng(np.random.SeedSequence(self._seed, spawn_key=key))
+
+    def _pair_rng(self, purpose: int, sender: int, receiver: int) -> np.random.Generator:
+        key = (purpose, sender, receiver)
+        rng = self._pair_rngs.get(key)
+        if rng is None:
+            rng = self._pair_rngs[key] = self._stream(*key)
+        return rng
+
+    def _push(self, at: float, kind: _Event, payload) -> None:
+        heapq.heappush(self._heap, (at, kind, next(self._order), payload))
+
+    def _collect(self, radio: _Radio, now: float) -> None:
+        """Queue the stack's new transmissions on its radio and re-arm its timer."""
+        transmissions = radio.stack.transmissions(now)
+        if transmissions:
+            if not radio.enabled:
+                self.stats.dropped_radio_off += len(transmissions)
+            else:
+                radio.queue.extend(transmissions)
+                if not radio.tx_scheduled:
+                    self._schedule_start(radio, now)
+        timer = radio.stack.get_timer()
+        if timer is not None and self._timer_at.get(radio.address) != timer:
+            self._timer_at[radio.address] = timer
+            self._push(max(timer, self._now), _Event.TIMER, radio)
+
+    def _schedule_start(self, radio: _Radio, now: float) -> None:
+        timing = self.timing
+        delay = radio.rng.random() * timing.adv_delay_max_s if timing.adv_delay_max_s else 0.0
+        start = max(now, radio.next_allowed_s, radio.on_air_until) + delay
+        radio.tx_scheduled = True
+        self._push(start, _Event.TX_START, radio)
+
+    def _fire_timer(self, radio: _Radio, at: float) -> None:
+        timer = radio.stack.get_timer()
+        if timer is None or timer > at:  # stale: the stack's timer moved since this was pushed
+            return
+        self._timer_at.pop(radio.address, None)
+        radio.stack.handle_timer(at)
+        self._collect(radio, at)
+
+    def _start_transmission(self, radio: _Radio, start: float) -> None:
+        radio.tx_scheduled = False
+        if not radio.queue or not radio.enabled:
+            return
+        transmission = radio.queue.popleft()
+        size = len(transmission.data)
+        end = start + self.channel.airtime_s(size)
+        radio.next_allowed_s = start + self.timing.adv_interval_s
+        radio.on_air_until = end
+        for reception in radio.receiving:  # half duplex: what it was hearing is lost
+            if reception.end > start:
+                reception.lost = reception.lost or LossCause.HALF_DUPLEX
+        self._count_transmission(transmission, size, end - start)
+        record = None
+        if self.records is not None:
+            record = AirRecord(start, end, radio.address, transmission.src, transmission.dst,
+                               transmission.msg_type, transmission.relayed, transmission.segment,
+                               transmission.data, None if transmission.dst == BROADCAST else False)
+            self.records.append(record)
+        sender_xy = radio.position()
+        for receiver in self._radios.values():
+            if receiver is radio:
+                continue
+            rx_xy = receiver.position()
+            if not receiver.enabled or not self.channel.audible(sender_xy, rx_xy):
+                if transmission.dst in (BROADCAST, receiver.address):  # only intended ones count
+                    cause = LossCause.RADIO_OFF if not receiver.enabled else LossCause.OUT_OF_RANGE
+                    self._count_reception(transmission, receiver, cause)
+                continue
+            verdict = self.channel.reception(sender_xy, rx_xy, size, self._pair_rng(2, radio.address, receiver.address))
+            reception = _Reception(transmission, radio, receiver, start, end, verdict, record)
+            if receiver.on_air_until > start:
+                reception.lost = LossCause.HALF_DUPLEX
+            self._overlap(receiver, reception, start)
+            self._push(end, _Event.ARRIVAL, reception)
+        if radio.queue:
+            self._schedule_start(radio, end)
+
+    def _overlap(self, receiver: _Radio, reception: _Reception, start: float) -> None:
+        """Collide `reception` with every reception at `receiver` whose PDUs share a channel with
+        it in time (starts closer than one PDU), unless one captures the receiver."""
+        still = [other for other in receiver.receiving if other.end > start]
+        capture = self.timing.capture_db
+        pdu_s = (reception.end - start) / ADV_CHANNELS
+        for other in still:
+            if start - other.start >= max(pdu_s, (other.end - other.start) / ADV_CHANNELS):
+                continue  # their PDUs are on different channels at any instant
+            if reception.verdict.rssi_dbm - other.verdict.rssi_dbm < capture:
+                reception.lost = reception.lost or LossCause.COLLISION
+            if other.verdict.rssi_dbm - reception.verdict.rssi_dbm < capture:
+                other.lost = other.lost or LossCause.COLLISION
+        still.append(reception)
+        receiver.receiving = still
+
+    def _arrive(self, reception: _Reception, at: float) -> None:
+        receiver = reception.receiver
+        lost = reception.lost
+        if lost is None and not receiver.enabled:
+            lost = LossCause.RADIO_OFF
+        if lost is None and not reception.verdict.delivered:
+            lost = reception.verdict.cause or LossCause.BIT_ERRORS
+        if lost is None and self.extra_loss > 0.0:
+            if self._pair_rng(3, reception.sender.address, receiver.address).random() < self.extra_loss:
+                lost = LossCause.EXTRA_LOSS
+        transmission = reception.transmission
+        self._count_reception(transmission, receiver, lost)
+        record = reception.record
+        if record is not None:
+            if lost is LossCause.COLLISION:
+                record.collided = True
+            if lost is None:
+                record.heard_by += 1
+                if transmission.dst == receiver.address:
+                    record.dst_heard = True
+        if lost is not None:
+            return
+        timing = self.timing
+        relay_delay = receiver.rng.random() * timing.relay_delay_max_s if timing.relay_delay_max_s else 0.0
+        receiver.stack.receive(transmission.data, at, rssi_dbm=reception.verdict.rssi_dbm, relay_delay_s=relay_delay)
+        self._collect(receiver, at)
+
+    def _count_transmission(self, transmission, size: int, airtime_s: float) -> None:
+        stats = self.stats
+        stats.transmissions += 1
+        stats.bytes_on_air += size
+        stats.airtime_s += airtime_s
+        if size > stats.max_frame_bytes:
+            stats.max_frame_bytes = size
+        if transmission.relayed:
+            stats.relayed_transmissions += 1
+        if transmission.segment is not None:
+            stats.segment_transmissions += 1
+
+    def _count_reception(self, transmission, receiver: _Radio, lost: LossCause | None) -> None:
+        stats = self.stats
+        if lost is None:
+            stats.receptions_delivered += 1
+        else:
+            stats.receptions_lost[lost.value] += 1
+        if transmission.dst == BROADCAST:
+            if lost is None:
+                stats.broadcast_delivered += 1
+            else:
+                stats.broadcast_lost += 1
+        elif transmission.dst == receiver.address:
+            if lost is None:
+                stats.unicast_delivered += 1
+            else:
+                stats.unicast_lost += 1
