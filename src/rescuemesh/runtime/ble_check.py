@@ -1,0 +1,629 @@
+"""ble-check: three robots command each other in real time over Bluetooth advertising bearers;
+frame latency and confirm round trips are timed on the event loop's clock. Owns the asyncio pump
+between a sans-IO stack and a bearer, the check's script and report. Must not know frame layouts.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import inspect
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+from enum import Enum
+from typing import TYPE_CHECKING, Any, Protocol, TextIO
+
+import numpy as np
+
+from rescuemesh.mesh import MeshConfig, MeshNode, NetworkStack
+from rescuemesh.protocol import (
+    CommandReceived,
+    ConfirmReceived,
+    DeliveryFailed,
+    Endpoint,
+    EndpointConfig,
+    Follow,
+    MessageType,
+    Pose,
+    PoseUpdateReceived,
+    ReliabilityConfig,
+    ResultCode,
+    Stop,
+)
+
+if TYPE_CHECKING:  # bumble is imported only when a check runs
+    from rescuemesh.transport.ble import BleTiming
+
+#: Robots in the check; robot_n has address n. robot_1 leads, the others follow it.
+ROBOTS = 3
+LEADER = 1
+#: PoseUpdates go out at 2 Hz, as in the follow scenario (paper IV.A).
+POSE_UPDATE_PERIOD_S = 0.5
+#: Resend after this long without a Confirm, in s. The advertising bearer sends one frame per
+#: hold (3 x 20 ms) per radio, so a Confirm can wait behind two frames at each end (about 4 x 65 ms);
+#: the protocol default of 0.15 s would resend frames that are only queued.
+BLE_ACK_TIMEOUT_S = 0.5
+#: A relaying stack re-broadcasts after a random 0..10 ms (Mesh Profile 1.0, 3.4.6.3), drawn here
+#: because the sans-IO mesh layer draws no random numbers (the simulated medium does the same).
+RELAY_DELAY_MAX_S = 0.010
+#: After the script, frames still on air get this long to land before the bearers stop, in s.
+DRAIN_S = 0.25
+#: Each robot's bearer gets this long to stop, in s (a dead dongle must not hang the exit).
+STOP_TIMEOUT_S = 5.0
+#: Events pulled from a stack per input: a runaway guard.
+MAX_EVENTS_PER_INPUT = 10_000
+
+
+class FrameStack(Protocol):
+    """What the pump needs of a stack (the aioquic shape). rescuemesh.protocol.Endpoint has it, and so
+    has mesh.NetworkStack, whose receive() also takes rssi_dbm= and relay_delay_s=: the pump passes
+    them when the stack's receive() names them."""
+
+    def receive(self, data: bytes, now: float) -> None: ...
+    def frames_to_send(self, now: float) -> list[bytes]: ...
+    def get_timer(self) -> float | None: ...
+    def handle_timer(self, now: float) -> None: ...
+    def next_event(self) -> Any: ...
+
+
+class CommandEndpoint(Protocol):
+    """What the check's robots call: the protocol Endpoint's sending calls and its events."""
+
+    def send_command(self, dst: int, command: Any, now: float) -> int: ...
+    def send_pose_update(self, dst: int, pose: Pose, now: float) -> int: ...
+    def confirm(
+        self, dst: int, ref_seq: int, ref_type: MessageType, result: ResultCode, now: float
+    ) -> None: ...
+    def next_event(self) -> Any: ...
+
+
+def endpoint_of(stack: FrameStack) -> CommandEndpoint:
+    """The protocol endpoint inside `stack`: its `endpoint` attribute (a mesh NetworkStack over an
+    Endpoint), or the stack itself (a bare Endpoint)."""
+    return getattr(stack, "endpoint", stack)
+
+
+class FrameSink(Protocol):
+    """What the pump needs of a bearer (transport.ble.BleBearer has it)."""
+
+    def send(self, frame: bytes) -> None: ...
+
+
+def default_stack(address: int) -> FrameStack:
+    """A robot's network stack as in the simulation (endpoint with the BLE ack timeout, on a mesh
+    node that relays): the stack the check uses unless told otherwise."""
+    endpoint = Endpoint(address, EndpointConfig(reliability=ReliabilityConfig(ack_timeout_s=BLE_ACK_TIMEOUT_S)))
+    return NetworkStack(endpoint, MeshNode(address, MeshConfig()))
+
+
+class Cause(Enum):
+    """Why a frame left a stack: the application asked, a received frame was answered, or a timer
+    fired (for an Endpoint, a timer frame is always a resend)."""
+
+    APP = "app"
+    RECEIVE = "receive"
+    TIMER = "timer"
+
+
+class StackPump:
+    """Moves frames between one sans-IO stack and one bearer on an asyncio loop (aioquic's asyncio
+    adapter shape): each input (a frame heard, a timer, an application call followed by transmit())
+    is handed to the stack with `now = loop.time()`; events (the stack's, then its endpoint's when
+    that is another object) go to `on_event`; frames out go to the bearer; the stack's timer is
+    re-armed with loop.call_at. `relay_delay()` draws a relay delay in s for stacks that take one.
+    Errors are kept in `errors`, not raised: the caller is bumble's HCI event handling."""
+
+    def __init__(
+        self,
+        stack: FrameStack,
+        bearer: FrameSink,
+        *,
+        on_event: Callable[[Any], None] = lambda event: None,
+        on_sent: Callable[[bytes, float, Cause], None] = lambda frame, now, cause: None,
+        on_received: Callable[[bytes, float], None] = lambda frame, now: None,
+        relay_delay: Callable[[], float] = lambda: 0.0,
+    ) -> None:
+        self.stack = stack
+        self.bearer = bearer
+        self.errors: list[str] = []
+        endpoint = endpoint_of(stack)
+        self._event_sources = [stack] if endpoint is stack else [stack, endpoint]
+        accepts = inspect.signature(stack.receive).parameters
+        self._pass_rssi = "rssi_dbm" in accepts
+        self._pass_relay_delay = "relay_delay_s" in accepts
+        self._relay_delay = relay_delay
+        self._on_event = on_event
+        self._on_sent = on_sent
+        self._on_received = on_received
+        self._loop = asyncio.get_running_loop()
+        self._timer: asyncio.TimerHandle | None = None
+        self._timer_at: float | None = None
+        self._closed = False
+
+    def frame_received(self, data: bytes, rssi_dbm: float | None = None) -> None:
+        """The bearer's on_frame callback."""
+        if self._closed:
+            return
+        now = self._loop.time()
+        self._guard(self._receive, data, now, rssi_dbm)
+
+    def transmit(self, cause: Cause = Cause.APP) -> None:
+        """Send what the stack has queued and re-arm its timer; call after any application call."""
+        if self._closed:
+            return
+        self._guard(self._transmit, cause)
+
+    def close(self) -> None:
+        self._closed = True
+        if self._timer is not None:
+            self._timer.cancel()
+            self._timer = None
+
+    def _receive(self, data: bytes, now: float, rssi_dbm: float | None) -> None:
+        self._on_received(data, now)
+        extra: dict[str, Any] = {}
+        if self._pass_rssi:
+            extra["rssi_dbm"] = rssi_dbm
+        if self._pass_relay_delay:
+            extra["relay_delay_s"] = self._relay_delay()
+        self.stack.receive(data, now, **extra)
+        self._drain_events()
+        self._transmit(Cause.RECEIVE)
+
+    def _on_timer(self) -> None:
+        self._timer, self._timer_at = None, None
+        if self._closed:
+            return
+        self._guard(self._fire_timer)
+
+    def _fire_timer(self) -> None:
+        self.stack.handle_timer(self._loop.time())
+        self._drain_events()
+        self._transmit(Cause.TIMER)
+
+    def _drain_events(self) -> None:
+        for source in self._event_sources:
+            for _ in range(MAX_EVENTS_PER_INPUT):
+                event = source.next_event()
+                if event is None:
+                    break
+                self._on_event(event)
+            else:
+                raise RuntimeError(f"more than {MAX_EVENTS_PER_INPUT} events from one input")
+
+    def _transmit(self, cause: Cause) -> None:
+        now = self._loop.time()
+        for frame in self.stack.frames_to_send(now):
+            self._on_sent(frame, now, cause)
+            self.bearer.send(frame)
+        at = self.stack.get_timer()
+        if at != self._timer_at:
+            if self._timer is not None:
+                self._timer.cancel()
+            self._timer = None if at is None else self._loop.call_at(at, self._on_timer)
+            self._timer_at = at
+
+    def _guard(self, step: Callable[..., None], *args: Any) -> None:
+        try:
+            step(*args)
+        except Exception as exc:  # kept for the report; raising here would land in bumble's HCI loop
+            self.errors.append(f"{type(exc).__name__}: {exc}")
+
+
+# --- measurement -----------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class FrameSample:
+    """One frame heard by one robot: sent by `src` at `sent_s`, handed to robot `dst`'s stack
+    `latency_s` later. `cause`: why the stack sent it (TIMER: for an Endpoint a resend; for a mesh
+    stack also a delayed relay or a Heartbeat). `repeat`: `src` had sent the same bytes before (a
+    cached Confirm sent again)."""
+
+    src: int
+    dst: int
+    sent_s: float
+    latency_s: float
+    cause: Cause
+    repeat: bool
+
+    @property
+    def resent(self) -> bool:
+        """Not a first send, as far as the pump can tell without reading the frame."""
+        return self.cause is Cause.TIMER or self.repeat
+
+
+class FrameLog:
+    """Matches receptions to sends by frame bytes: a reception counts against the latest send of the
+    same bytes by another robot, once per (send, receiver). The radio is a broadcast medium, so every
+    robot in range hears every frame; each one is a sample (a unicast frame's destination hears it
+    at the same moment as the bystanders, and relays will need them)."""
+
+    def __init__(self) -> None:
+        self.sends: dict[bytes, list[tuple[int, float, Cause, bool]]] = {}  # (src, sent_s, cause, repeat)
+        self.samples: list[FrameSample] = []
+        self.frames_sent = 0
+        self.frames_received = 0
+        self.unmatched = 0  # heard, but no robot here sent those bytes (another node on the air)
+        self._counted: set[tuple[int, int, float]] = set()
+
+    def sent(self, src: int, frame: bytes, now: float, cause: Cause) -> None:
+        self.frames_sent += 1
+        history = self.sends.setdefault(frame, [])
+        repeat = any(entry[0] == src for entry in history)
+        history.append((src, now, cause, repeat))
+
+    def received(self, dst: int, frame: bytes, now: float) -> None:
+        self.frames_received += 1
+        candidates = [entry for entry in self.sends.get(frame, ()) if entry[0] != dst and entry[1] <= now]
+        if not candidates:
+            self.unmatched += 1
+            return
+        src, sent_s, cause, repeat = max(candidates, key=lambda entry: entry[1])
+        key = (dst, src, sent_s)
+        if key in self._counted:
+            return
+        self._counted.add(key)
+        self.samples.append(FrameSample(src, dst, sent_s, now - sent_s, cause, repeat))
+
+
+def percentile(values: Sequence[float], q: float) -> float:
+    """The q-th percentile (0..100) with linear interpolation between ranks; NaN when empty."""
+    if not values:
+        return math.nan
+    ordered = sorted(values)
+    rank = (len(ordered) - 1) * q / 100.0
+    low = math.floor(rank)
+    high = min(low + 1, len(ordered) - 1)
+    return ordered[low] + (ordered[high] - ordered[low]) * (rank - low)
+
+
+# --- the report ------------------------------------------------------------------------------------
+
+
+@dataclass
+class BleCheckReport:
+    """What one ble-check run measured. Times in ms unless named _s; NaN where nothing was measured."""
+
+    controllers: str
+    robots: int = ROBOTS
+    passed: bool = False
+    failure: str | None = None
+    commands_sent: int = 0
+    commands_confirmed: int = 0
+    pose_updates_sent: int = 0
+    pose_updates_confirmed: int = 0
+    frame_latency_p50_ms: float = math.nan
+    frame_latency_p95_ms: float = math.nan
+    frame_latency_max_ms: float = math.nan
+    latency_samples: int = 0
+    resent_samples: int = 0
+    confirm_rtt_p50_ms: float = math.nan
+    confirm_rtt_p95_ms: float = math.nan
+    confirm_rtt_max_ms: float = math.nan
+    frames_sent: int = 0  # handed to the bearers by the stacks
+    frames_advertised: int = 0  # put on air (frames still queued at the end never fly)
+    frames_received: int = 0  # handed to the stacks by the bearers (a repeat the bearer missed included)
+    receptions: int = 0  # distinct (transmission, other robot) pairs heard = latency_samples
+    receptions_expected: int = 0  # frames_advertised x (robots - 1): everyone hears everyone
+    resends: int = 0
+    duration_s: float = 0.0
+    bearer_stats: dict[str, dict[str, int]] = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    def summary(self) -> str:
+        """A few lines for people: one figure per line."""
+        verdict = "PASS" if self.passed else "FAIL"
+        lines = [
+            f"ble-check: {verdict}, {self.robots} robots on {self.controllers}, {self.duration_s:.1f} s",
+            f"  commands {self.commands_confirmed}/{self.commands_sent} confirmed",
+            f"  PoseUpdates {self.pose_updates_confirmed}/{self.pose_updates_sent} confirmed",
+            f"  frame latency p50 {self.frame_latency_p50_ms:.1f} ms, p95 {self.frame_latency_p95_ms:.1f} ms,"
+            f" max {self.frame_latency_max_ms:.1f} ms ({self.latency_samples} receptions,"
+            f" {self.resent_samples} of frames sent by a timer or repeated)",
+            f"  confirm RTT p50 {self.confirm_rtt_p50_ms:.1f} ms, p95 {self.confirm_rtt_p95_ms:.1f} ms,"
+            f" max {self.confirm_rtt_max_ms:.1f} ms",
+            f"  frames sent {self.frames_sent}, on air {self.frames_advertised}; receptions"
+            f" {self.receptions} of {self.receptions_expected}; resends {self.resends}",
+        ]
+        if self.failure:
+            lines.append(f"  failure: {self.failure}")
+        return "\n".join(lines)
+
+
+# --- the robots ------------------------------------------------------------------------------------
+
+
+class _Robot:
+    """One robot of the check: a stack, its bearer, its pump and the little application on top."""
+
+    def __init__(
+        self, address: int, stack: FrameStack, bearer: Any, log: FrameLog, rng: np.random.Generator
+    ) -> None:
+        self.address = address
+        self.stack = stack
+        self.endpoint = endpoint_of(stack)
+        self.bearer = bearer
+        self.following: int | None = None
+        self.pending: dict[tuple[int, int], tuple[float, asyncio.Future[Any]]] = {}  # (dst, seq)
+        self.rtts_s: list[float] = []
+        self.pump = StackPump(
+            stack,
+            bearer,
+            on_event=self._on_event,
+            on_sent=lambda frame, now, cause: log.sent(address, frame, now, cause),
+            on_received=lambda frame, now: log.received(address, frame, now),
+            relay_delay=lambda: float(rng.uniform(0.0, RELAY_DELAY_MAX_S)),
+        )
+        bearer.on_frame = self.pump.frame_received
+        self._loop = asyncio.get_running_loop()
+        # event type -> handler; other events (Heartbeats, rejected frames, network events) are
+        # not this check's business
+        self._handlers: dict[type, Callable[[Any], None]] = {
+            ConfirmReceived: self._on_confirm,
+            DeliveryFailed: self._on_delivery_failed,
+            CommandReceived: self._on_command,
+            PoseUpdateReceived: self._on_pose_update,
+        }
+
+    # leader side
+    def command(self, dst: int, command: Any) -> asyncio.Future[Any]:
+        now = self._loop.time()
+        return self._track(dst, self.endpoint.send_command(dst, command, now), now)
+
+    def pose_update(self, dst: int, pose: Pose) -> asyncio.Future[Any]:
+        now = self._loop.time()
+        return self._track(dst, self.endpoint.send_pose_update(dst, pose, now), now)
+
+    def _track(self, dst: int, seq: int, now: float) -> asyncio.Future[Any]:
+        future = self._loop.create_future()
+        self.pending[(dst, seq)] = (now, future)
+        self.pump.transmit(Cause.APP)
+        return future
+
+    def _on_event(self, event: Any) -> None:
+        handler = self._handlers.get(type(event))
+        if handler is not None:
+            handler(event)
+
+    # leader side
+    def _on_confirm(self, event: ConfirmReceived) -> None:
+        # only the first, solicited Confirm finds its frame pending; later reports find nothing
+        sent_s, future = self.pending.pop((event.src, event.ref_seq), (0.0, None))
+        if future is not None and not future.done():
+            self.rtts_s.append(event.now - sent_s)
+            future.set_result(event)
+
+    def _on_delivery_failed(self, event: DeliveryFailed) -> None:
+        _, future = self.pending.pop((event.dst, event.seq), (0.0, None))
+        if future is not None and not future.done():
+            future.set_result(event)
+
+    # follower side: Follow -> ACCEPTED and follow the sender, Stop -> DONE, anything else UNSUPPORTED
+    def _on_command(self, event: CommandReceived) -> None:
+        kind = event.command.TYPE
+        following, result = _ANSWERS.get(kind, (self.following, ResultCode.UNSUPPORTED))
+        self.following = event.src if following is _SENDER else following
+        self.endpoint.confirm(event.src, event.seq, kind, result, event.now)
+
+    def _on_pose_update(self, event: PoseUpdateReceived) -> None:
+        result = ResultCode.ACCEPTED if self.following == event.src else ResultCode.DENIED
+        self.endpoint.confirm(event.src, event.seq, MessageType.POSE_UPDATE, result, event.now)
+
+
+#: A follower's answer to a command: whom it follows afterwards (_SENDER: the sender) and the result.
+_SENDER = object()
+_ANSWERS: dict[MessageType, tuple[Any, ResultCode]] = {
+    MessageType.FOLLOW: (_SENDER, ResultCode.ACCEPTED),
+    MessageType.STOP: (None, ResultCode.DONE),
+}
+
+
+def _confirmed(outcome: Any, expected: ResultCode) -> bool:
+    return isinstance(outcome, ConfirmReceived) and outcome.result is expected
+
+
+class _Script:
+    """robot_1 sends Follow to the others, streams PoseUpdates at 2 Hz, then sends Stop."""
+
+    def __init__(self, robots: dict[int, _Robot], report: BleCheckReport, updates: int) -> None:
+        self.robots = robots
+        self.report = report
+        self.updates = updates
+        self.phase = "starting"
+
+    async def run(self) -> None:
+        leader = self.robots[LEADER]
+        followers = [a for a in self.robots if a != LEADER]
+        loop = asyncio.get_running_loop()
+        pose = Pose(0.0, 0.0, 0.0, 0.0)
+
+        self.phase = "Follow"
+        outcomes = await self._commands(leader, followers, lambda: Follow(pose))
+        self.report.commands_confirmed += sum(_confirmed(o, ResultCode.ACCEPTED) for o in outcomes)
+
+        self.phase = "PoseUpdates"
+        futures: list[asyncio.Future[Any]] = []
+        start = loop.time()
+        for i in range(self.updates):
+            await asyncio.sleep(max(0.0, start + i * POSE_UPDATE_PERIOD_S - loop.time()))
+            pose_i = Pose(0.25 * (i + 1), 0.0, 0.0, 0.0)  # the leader drives along x at 0.5 m/s
+            for dst in followers:
+                futures.append(leader.pose_update(dst, pose_i))
+                self.report.pose_updates_sent += 1
+        outcomes = await asyncio.gather(*futures)
+        self.report.pose_updates_confirmed = sum(_confirmed(o, ResultCode.ACCEPTED) for o in outcomes)
+
+        self.phase = "Stop"
+        outcomes = await self._commands(leader, followers, Stop)
+        self.report.commands_confirmed += sum(_confirmed(o, ResultCode.DONE) for o in outcomes)
+        self.phase = "done"
+
+    async def _commands(self, leader: _Robot, followers: list[int], make: Callable[[], Any]) -> list[Any]:
+        futures = [leader.command(dst, make()) for dst in followers]
+        self.report.commands_sent += len(futures)
+        return list(await asyncio.gather(*futures))
+
+
+# --- running the check -----------------------------------------------------------------------------
+
+
+def check_hci_specs(hci: str | Sequence[str] | None) -> list[str | None]:
+    """One HCI spec (or None: virtual) per robot. Raises ValueError unless `hci` is empty/None
+    (three virtual controllers) or names three distinct controllers: virtual and real controllers
+    cannot hear each other, and one radio per robot is the point of the check."""
+    specs = [hci] if isinstance(hci, str) else list(hci or [])
+    if not specs:
+        return [None] * ROBOTS
+    if len(specs) != ROBOTS:
+        raise ValueError(
+            f"--hci names {len(specs)} controller(s); ble-check needs one per robot: give --hci "
+            f"{ROBOTS} times (e.g. --hci usb:0 --hci usb:1 --hci usb:2), or not at all for virtual "
+            "controllers"
+        )
+    if len(set(specs)) != len(specs):
+        raise ValueError(f"--hci names the same controller twice: {', '.join(specs)}")
+    return list(specs)
+
+
+async def run_ble_check(
+    hci: str | Sequence[str] | None = None,
+    *,
+    updates: int = 6,
+    timeout_s: float = 30.0,
+    make_stack: Callable[[int], FrameStack] = default_stack,
+    timing: BleTiming | None = None,
+    seed: int = 0,
+) -> BleCheckReport:
+    """Run the check on three bearers (virtual controllers, or the three controllers in `hci`) and
+    return its report. `make_stack(address)` builds each robot's stack (see FrameStack and
+    endpoint_of); `seed` seeds the relay delays. Raises ValueError for bad `hci` or `updates`,
+    BleSetupError when a controller cannot be opened; a timeout or a failure during the run gives a
+    report with passed False."""
+    from rescuemesh.transport.ble import BleBearer, new_virtual_link  # bumble only when asked for
+
+    specs = check_hci_specs(hci)
+    if not (isinstance(updates, int) and 0 <= updates <= 1000):
+        raise ValueError(f"updates must be an int 0..1000, got {updates!r}")
+    virtual = specs[0] is None
+    report = BleCheckReport(controllers="virtual controllers" if virtual else ", ".join(specs))
+    link = new_virtual_link() if virtual else None
+    bearers = {
+        address: BleBearer(spec, link=link, timing=timing, name=f"robot_{address}")
+        for address, spec in zip(range(1, ROBOTS + 1), specs)
+    }
+    log = FrameLog()
+    robots: dict[int, _Robot] = {}
+    loop = asyncio.get_running_loop()
+    started = finished = loop.time()
+    script: _Script | None = None
+    try:
+        await _start_all(list(bearers.values()))
+        streams = np.random.SeedSequence(seed).spawn(len(bearers))
+        robots = {
+            address: _Robot(address, make_stack(address), bearer, log, np.random.default_rng(stream))
+            for (address, bearer), stream in zip(bearers.items(), streams)
+        }
+        script = _Script(robots, report, updates)
+        started = loop.time()
+        try:
+            await asyncio.wait_for(script.run(), timeout_s)
+        except asyncio.TimeoutError:
+            report.failure = f"timed out after {timeout_s:g} s in the {script.phase} phase"
+        finished = loop.time()
+        await asyncio.sleep(DRAIN_S)  # the last Confirm's other listeners, queued Heartbeats
+    finally:
+        for robot in robots.values():
+            robot.pump.close()
+        await asyncio.gather(*(_stop(bearer) for bearer in bearers.values()))
+    report.duration_s = finished - started
+    _fill_figures(report, robots, bearers, log)
+    return report
+
+
+async def _start_all(bearers: list[Any]) -> None:
+    results = await asyncio.gather(*(bearer.start() for bearer in bearers), return_exceptions=True)
+    errors = [result for result in results if isinstance(result, BaseException)]
+    if errors:
+        raise errors[0]
+
+
+async def _stop(bearer: Any) -> None:
+    try:
+        await asyncio.wait_for(bearer.stop(), STOP_TIMEOUT_S)
+    except Exception:  # stop() never raises; the timeout is the only way here
+        pass
+
+
+def _fill_figures(
+    report: BleCheckReport, robots: dict[int, _Robot], bearers: dict[int, Any], log: FrameLog
+) -> None:
+    latencies = [s.latency_s * 1000.0 for s in log.samples]
+    report.latency_samples = len(latencies)
+    report.resent_samples = sum(s.resent for s in log.samples)
+    report.frame_latency_p50_ms = percentile(latencies, 50)
+    report.frame_latency_p95_ms = percentile(latencies, 95)
+    report.frame_latency_max_ms = max(latencies) if latencies else math.nan
+    rtts = [rtt * 1000.0 for robot in robots.values() for rtt in robot.rtts_s]
+    report.confirm_rtt_p50_ms = percentile(rtts, 50)
+    report.confirm_rtt_p95_ms = percentile(rtts, 95)
+    report.confirm_rtt_max_ms = max(rtts) if rtts else math.nan
+    report.frames_sent = log.frames_sent
+    report.frames_received = log.frames_received
+    report.receptions = len(log.samples)
+    report.frames_advertised = sum(bearer.stats.frames_advertised for bearer in bearers.values())
+    report.receptions_expected = report.frames_advertised * (len(bearers) - 1)
+    report.resends = sum(_resends(robot, log) for robot in robots.values())
+    report.bearer_stats = {f"robot_{a}": b.stats.as_dict() for a, b in bearers.items()}
+    errors = [f"robot_{a}: {e}" for a, robot in robots.items() for e in robot.pump.errors]
+    if errors:
+        pump_failure = f"{len(errors)} error(s) in the pump, first: {errors[0]}"
+        report.failure = pump_failure if report.failure is None else f"{report.failure}; {pump_failure}"
+    unconfirmed = (report.commands_sent - report.commands_confirmed) + (
+        report.pose_updates_sent - report.pose_updates_confirmed
+    )
+    if unconfirmed and report.failure is None:
+        report.failure = f"{unconfirmed} command(s) or PoseUpdate(s) not confirmed as expected"
+    report.passed = report.failure is None and report.commands_sent > 0
+
+
+def _resends(robot: _Robot, log: FrameLog) -> int:
+    """The endpoint's own resend count when it keeps one (Endpoint.stats.retries), else the frames
+    this robot's timer sent."""
+    retries = getattr(getattr(robot.endpoint, "stats", None), "retries", None)
+    if isinstance(retries, int):
+        return retries
+    return sum(1 for entries in log.sends.values() for src, _, cause, _ in entries
+               if src == robot.address and cause is Cause.TIMER)
+
+
+def ble_check(hci: str | Sequence[str] | None = None, **options: Any) -> BleCheckReport:
+    """run_ble_check(hci, **options) on a fresh event loop, for callers that have none."""
+    return asyncio.run(run_ble_check(hci, **options))
+
+
+def main_ble_check(
+    hci_specs: Sequence[str] | None, out: TextIO, *, updates: int = 6, timeout_s: float = 30.0
+) -> int:
+    """`rescuemesh ble-check [--hci SPEC]...`: print the report; 0 when every command and PoseUpdate
+    was confirmed, 1 when not, 2 for bad input (wrong --hci count, a controller that cannot be
+    opened, bumble missing), with a one-line message."""
+    try:
+        from rescuemesh.transport.ble import BleSetupError
+    except ImportError as exc:
+        print(f"ble-check: {exc}", file=out)
+        return 2
+    try:
+        specs = check_hci_specs(list(hci_specs or []))
+    except ValueError as exc:
+        print(f"ble-check: {exc}", file=out)
+        return 2
+    try:
+        report = ble_check([s for s in specs if s is not None], updates=updates, timeout_s=timeout_s)
+    except BleSetupError as exc:
+        print(f"ble-check: {exc}", file=out)
+        return 2
+    print(report.summary(), file=out)
+    return 0 if report.passed else 1
