@@ -1,4 +1,5 @@
-"""`rescuemesh bench`: the figures we track: real-time factor of the follow scenario and codec rate.
+"""`rescuemesh bench`: the figures we track: real-time factor of the follow scenario, codec rate, and
+the network: confirm latency over a chain of relays, delivery ratio on a lossy link.
 
 Owns: timing (wall clock) and the bench JSON. Must not know: scenario internals. Prints figures;
 never fails on time: speed goals are read, not asserted.
@@ -14,11 +15,16 @@ from pathlib import Path
 from rescuemesh.protocol import MAX_CONTROL_FRAME_BYTES, MessageType
 from rescuemesh.protocol.bench import codec_roundtrip_rate
 from rescuemesh.protocol.codec import max_frame_bytes
+from rescuemesh.runtime.mesh_bench import chain_confirm_latency, delivery_ratio
 from rescuemesh.scenarios import ScenarioOptions
 from rescuemesh.scenarios.runner import run_scenario
 
-RTF_GOAL = 20.0
+RTF_GOAL = 30.0
 CODEC_GOAL_FPS = 100_000
+#: Bluetooth Mesh measurements (docs/mesh.md): TI SWRA732 19-33 ms for 1 hop; under 200 ms for 6.
+CHAIN_HOPS = (1, 2, 4, 6)
+RELAYED_DELIVERY_GOAL = 0.999
+LOSS_FOR_DELIVERY = 0.3
 
 
 def run_bench(out: Path, *, seed: int = 0) -> int:
@@ -43,7 +49,28 @@ def run_bench(out: Path, *, seed: int = 0) -> int:
     widest = max(sizes, key=sizes.get)
     print(f"largest frame   : {figures['follow_max_frame_bytes']} bytes in this run; "
           f"{sizes[widest]} bytes for any message ({widest}; budget {MAX_CONTROL_FRAME_BYTES})")
+    figures["network"] = _network_figures(seed)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(figures, indent=2) + "\n")
     print(f"wrote {out}")
     return 0
+
+
+def _network_figures(seed: int) -> dict:
+    """Confirm round trips over a chain (receivers answer at once) and delivery ratios at 30 % loss."""
+    chain = {}
+    for hops in CHAIN_HOPS:
+        f = chain_confirm_latency(hops, trials=100, seed=seed)
+        chain[str(hops)] = {"p50_ms": f.p50_ms, "p95_ms": f.p95_ms, "mean_ms": f.mean_ms,
+                            "confirmed": f.confirmed, "trials": f.trials}
+        print(f"confirm latency : {hops} hop{'s' if hops > 1 else ' '} p50 {f.p50_ms:6.1f} ms, p95 {f.p95_ms:6.1f} ms "
+              f"({f.confirmed}/{f.trials} confirmed; anchor: 19-33 ms for 1 hop, < 200 ms for 6)")
+    direct = delivery_ratio(0, extra_loss=LOSS_FOR_DELIVERY, trials=2000, seed=seed)
+    relayed = delivery_ratio(2, extra_loss=LOSS_FOR_DELIVERY, trials=2000, seed=seed)
+    paper = 1 - (1 - (1 - LOSS_FOR_DELIVERY) ** 2) ** 3
+    print(f"delivery ratio  : {100 * direct:.2f} % direct, {100 * relayed:.2f} % with two relays, within 2 s at "
+          f"{100 * LOSS_FOR_DELIVERY:.0f} % loss (goal >= {100 * RELAYED_DELIVERY_GOAL:.1f} % with relays; "
+          f"the paper's 3 sends alone: {100 * paper:.1f} %)")
+    return {"confirm_latency_by_hops": chain, "delivery_ratio_direct": direct, "delivery_ratio_two_relays": relayed,
+            "delivery_ratio_paper_3_sends": round(paper, 4), "extra_loss": LOSS_FOR_DELIVERY,
+            "goals": {"six_hops_p50_ms": 200, "delivery_ratio_two_relays": RELAYED_DELIVERY_GOAL}}

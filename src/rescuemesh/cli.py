@@ -1,4 +1,5 @@
-"""The `rescuemesh` command: run a scenario, list scenarios, run the benchmark.
+"""The `rescuemesh` command: run a scenario, list scenarios, run the benchmark, draw a radio map,
+check the BLE transport.
 
 Owns: argument parsing, progress display, the human summary, exit codes (0 success, 1 a scenario's
 criteria failed, 2 bad input). Must not know: how scenarios or the simulation work inside.
@@ -84,8 +85,24 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--start", action="append", default=[], metavar="NAME=X,Y,YAW", help="a robot's start pose")
     run.add_argument("--goal", default=None, metavar="X,Y", help="the leader's goal in follow/stop")
     run.add_argument("--time-limit", type=float, default=None, help="simulated seconds before giving up")
+    run.add_argument("--radio", choices=["ble", "disc"], default="ble",
+                     help="channel model: ble (walls, path loss, fading; default) or disc (10 m disc)")
+    run.add_argument("--no-relay", action="store_true", help="no robot relays frames (single-hop radio)")
+    run.add_argument("--outage", type=float, default=None, metavar="S",
+                     help="disconnect: seconds robot_1's radio stays silent (default 3)")
     run.add_argument("--quiet", action="store_true", help="no progress display")
     sub.add_parser("scenarios", help="list the scenarios")
+    radio_map = sub.add_parser("radio-map", help="draw where a transmitter is heard (radio_map.png)")
+    radio_map.add_argument("--from", dest="origin", required=True, metavar="X,Y", help="transmitter position in m")
+    radio_map.add_argument("--map", type=Path, default=None, help="map file (default: the office)")
+    radio_map.add_argument("--out", type=Path, default=Path("out/radio-map"), help="output folder")
+    radio_map.add_argument("--radio", choices=["ble", "disc"], default="ble", help="channel model (default ble)")
+    radio_map.add_argument("--seed", type=int, default=0, help="seed of the shadowing field (default 0)")
+    radio_map.add_argument("--power", action="store_true", help="plot mean received power instead of delivery")
+    ble = sub.add_parser("ble-check", help="run three endpoints over a real BLE host stack (bumble) in real time")
+    ble.add_argument("--hci", action="append", default=[], metavar="SPEC",
+                     help="an HCI transport per robot (e.g. usb:0); give it three times, or none for "
+                          "bumble's virtual controllers")
     bench = sub.add_parser("bench", help="measure the real-time factor and the codec rate")
     bench.add_argument("--out", type=Path, default=Path("out/bench.json"), help="JSON file for the figures")
     bench.add_argument("--seed", type=int, default=0)
@@ -97,6 +114,12 @@ def main(argv: list[str] | None = None) -> int:
         args = build_parser().parse_args(argv)
         if args.command == "scenarios":
             return _list_scenarios()
+        if args.command == "radio-map":
+            return _radio_map(args)
+        if args.command == "ble-check":
+            from rescuemesh.runtime.ble_check import main_ble_check
+
+            return main_ble_check(args.hci, sys.stdout)
         if args.command == "bench":
             from rescuemesh.bench import run_bench
 
@@ -125,6 +148,7 @@ def _list_scenarios() -> int:
 def _run(args) -> int:
     from rescuemesh.geometry import Pose2D
     from rescuemesh.maps import MapError
+    from rescuemesh.runtime import RadioKind
     from rescuemesh.scenarios import ScenarioError, ScenarioOptions
     from rescuemesh.scenarios.runner import run_scenario
 
@@ -132,10 +156,13 @@ def _run(args) -> int:
         raise UsageError(f"--loss must be in [0, 1), got {args.loss}")
     if args.time_limit is not None and not (0 < args.time_limit < math.inf):
         raise UsageError(f"--time-limit must be a finite number of seconds > 0, got {args.time_limit}")
+    if args.outage is not None and not (0 < args.outage < math.inf):
+        raise UsageError(f"--outage must be a finite number of seconds > 0, got {args.outage}")
     _check_seed(args.seed)
     goal = Pose2D(*_pose(args.goal, with_yaw=False)) if args.goal else None
     options = ScenarioOptions(seed=args.seed, loss=args.loss, radius_m=args.radius, starts=_starts(args.start),
-                              goal=goal, time_limit_s=args.time_limit)
+                              goal=goal, time_limit_s=args.time_limit, radio=RadioKind(args.radio),
+                              relay=not args.no_relay, outage_s=args.outage)
     out = _writable_folder(args.out or Path("out") / args.scenario)
     progress = None if args.quiet else _Progress(args.scenario)
     try:
@@ -172,10 +199,31 @@ class _Progress:
             sys.stderr.write("\r" + " " * 70 + "\r")
 
 
+def _radio_map(args) -> int:
+    from rescuemesh.maps import MapError, load_map, office_map_path
+    from rescuemesh.radio import make_channel
+    from rescuemesh.report.radio_map import Quantity, write_radio_map
+
+    _check_seed(args.seed)
+    x, y = _pose(args.origin, with_yaw=False)
+    try:
+        map_model = load_map(args.map or office_map_path())
+        channel = make_channel(args.radio, grid=map_model.grid, seed=args.seed)
+        out = _writable_folder(args.out)
+        path = write_radio_map(map_model, channel, (x, y), out / "radio_map.png",
+                               quantity=Quantity.POWER if args.power else Quantity.DELIVERY)
+    except (MapError, ValueError) as error:
+        raise UsageError(str(error)) from None
+    print(f"radio map of a transmitter at ({x:g}, {y:g}) on {map_model.name} ({args.radio} model)")
+    print(f"  wrote {path}")
+    return EXIT_OK
+
+
 def _summary(outcome) -> None:
     r = outcome.result
-    p = r["protocol"]
-    print(f"{r['scenario']}: {'SUCCESS' if r['success'] else 'FAILED'}  (seed {r['seed']}, "
+    p, n = r["protocol"], r["network"]
+    radio = r["settings"]["radio"] + ("" if r["settings"]["relay"] else ", no relay")
+    print(f"{r['scenario']}: {'SUCCESS' if r['success'] else 'FAILED'}  (seed {r['seed']}, radio {radio}, "
           f"loss {r['settings']['loss']:g}, {r['sim_time_s']:.1f} s simulated in {r['wall_time_s']:.1f} s, "
           f"{r['real_time_factor']}x real time)")
     for check in r["criteria"]:
@@ -185,8 +233,13 @@ def _summary(outcome) -> None:
     print(f"  metrics: {metrics}")
     if skipped:
         print(f"  waypoints skipped (inside obstacles): {', '.join(skipped)}")
-    print(f"  protocol: {p['frames_sent']} frames sent ({p['bytes_sent']} B, largest {p['max_frame_bytes']} B), "
-          f"{p['frames_lost']} lost ({p['frames_out_of_range']} out of range), {p['retries']} retries, {p['confirms']} confirms, "
-          f"{p['commands_failed']} commands failed")
+    ratio = "n/a" if p["delivery_ratio"] is None else f"{100 * p['delivery_ratio']:.0f} %"
+    print(f"  protocol: {p['unicast_frames_sent']} unicast + {p['broadcast_frames_sent']} broadcast frames sent "
+          f"({p['bytes_sent']} B), {p['retries']} retries, {p['confirms']} confirms; commands "
+          f"{p['commands_confirmed']}/{p['commands_sent']} confirmed ({ratio}), {p['commands_failed']} failed")
+    hops = ", ".join(f"{k} hop{'s' if k != '1' else ''}: {v}" for k, v in n["hops_histogram"].items())
+    print(f"  network: {n['transmissions']} transmissions ({n['relayed_frames']} relayed, "
+          f"{n['segment_transmissions']} segments, largest {p['max_frame_bytes']} B), airtime {n['airtime_s']:.2f} s, "
+          f"{n['collisions']} collisions; delivered by hops: {hops or 'none'}")
     for path in outcome.files:
         print(f"  wrote {path}")

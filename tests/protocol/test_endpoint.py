@@ -374,7 +374,7 @@ def test_stats():
     b.confirm(1, seq, T.MOVE_AROUND, R.ACCEPTED, 0.0)
     link.pump()
     assert a.stats.as_dict() == {
-        "frames_sent": 1, "bytes_sent": 20, "max_frame_bytes": 20, "retries": 0,
+        "frames_sent": 1, "broadcasts_sent": 0, "bytes_sent": 20, "max_frame_bytes": 20, "retries": 0,
         "confirms_sent": 0, "confirms_received": 1, "delivery_failures": 0, "duplicates": 0,
         "frames_rejected": 0, "frames_not_for_us": 0, "frames_received": 1,
     }

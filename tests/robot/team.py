@@ -10,10 +10,11 @@ from rescuemesh.body import Body
 from rescuemesh.geometry import Pose2D, wrap_angle
 from rescuemesh.maps import OccupancyGrid
 from rescuemesh.nav import Costmap, NavigateToPose
+from rescuemesh.mesh import MeshNode, NetworkStack
 from rescuemesh.protocol import Endpoint
-from rescuemesh.radio import RangeLossChannel
+from rescuemesh.radio import DiscChannel
 from rescuemesh.robot import RobotBrain, robot_address
-from rescuemesh.transport import SimRadioLink
+from rescuemesh.transport import SimMedium
 
 DT = 0.05
 
@@ -55,16 +56,20 @@ def open_room(size_m: float = 12.0, resolution: float = 0.05) -> OccupancyGrid:
 
 
 class Team:
+    """Robots with the real endpoint, mesh node and brain over the simulated medium (disc radio,
+    10 m: teleport a body away to cut it off)."""
+
     def __init__(self, starts: dict[str, Pose2D], loss: float = 0.0, seed: int = 0) -> None:
         self.costmap = Costmap(open_room())
-        self.link = SimRadioLink(RangeLossChannel(loss=loss), np.random.default_rng(seed))
+        self.link = SimMedium(DiscChannel(), seed, extra_loss=loss, record=True)
         self.bodies, self.brains, self.time = {}, {}, 0.0
         for name, pose in starts.items():
             body = UnicycleBody(name, pose)
-            endpoint = Endpoint(robot_address(name))
+            address = robot_address(name)
+            stack = NetworkStack(Endpoint(address), MeshNode(address))
             self.bodies[name] = body
-            self.brains[name] = RobotBrain(name, body, endpoint, NavigateToPose(self.costmap), self.costmap)
-            self.link.attach(endpoint.address, endpoint, lambda b=body: (b.pose().x, b.pose().y))
+            self.brains[name] = RobotBrain(name, body, stack, NavigateToPose(self.costmap), self.costmap)
+            self.link.attach(address, stack, lambda b=body: (b.pose().x, b.pose().y))
 
     def run(self, seconds: float) -> None:
         for _ in range(round(seconds / DT)):

@@ -77,6 +77,7 @@ class EndpointStats:
     the ones not for us (other destination, or our own frames heard back)."""
 
     frames_sent: int = 0
+    broadcasts_sent: int = 0  # of frames_sent, those to BROADCAST (Heartbeats)
     bytes_sent: int = 0
     max_frame_bytes: int = 0
     retries: int = 0  # resends (a frame sent 3 times counts 2)
@@ -222,6 +223,8 @@ class Endpoint:
             size = len(frame)
             stats.frames_sent += 1
             stats.bytes_sent += size
+            if frame[3] == BROADCAST:
+                stats.broadcasts_sent += 1
             if size > stats.max_frame_bytes:
                 stats.max_frame_bytes = size
             if frame[1] & TYPE_MASK == MessageType.CONFIRM:

@@ -65,6 +65,7 @@ class Reason(IntEnum):
     BLOCKED = 10  # every waypoint is inside an obstacle
     BAD_REQUEST = 11  # the request cannot be carried out as given (a malformed inner message)
     UNKNOWN_TARGET = 12  # a ForwardMsg to our own or the broadcast address
+    BUSY = 13  # no room to take it on now (all forwarding slots held); ask again later
 
 
 class DataKind(IntEnum):

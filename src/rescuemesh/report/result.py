@@ -26,23 +26,8 @@ def build_result(scenario, rt, verdict, wall_time_s: float, map_model) -> dict:
             "collisions": rt.world.collisions.get(name, 0),
             "endpoint": rt.brains[name].endpoint.stats.as_dict(),
         }
-    endpoints = [b.endpoint.stats for b in rt.brains.values()]
-    link = rt.link.stats
-    protocol = {
-        "frames_sent": link.frames_sent,
-        "frames_delivered": link.frames_delivered,
-        "frames_lost": link.frames_lost,
-        "frames_out_of_range": link.frames_out_of_range,
-        "retries": sum(s.retries for s in endpoints),
-        "confirms": sum(s.confirms_sent for s in endpoints),
-        "confirms_received": sum(s.confirms_received for s in endpoints),
-        "duplicates_suppressed": sum(s.duplicates for s in endpoints),
-        "frames_rejected": sum(s.frames_rejected for s in endpoints),
-        "delivery_failures": sum(s.delivery_failures for s in endpoints),
-        "commands_failed": sum(b.commands_failed for b in rt.brains.values()),
-        "bytes_sent": link.bytes_sent,
-        "max_frame_bytes": link.max_frame_bytes,
-    }
+    protocol = protocol_summary(rt)
+    network = network_summary(rt)
     sim_time = rt.time
     return {
         "scenario": scenario.name,
@@ -55,8 +40,13 @@ def build_result(scenario, rt, verdict, wall_time_s: float, map_model) -> dict:
         "settings": {
             "map": map_model.name,
             "loss": scenario.options.loss,
-            "radio_range_m": rt.config.range_m,
-            "radio_latency_s": rt.config.latency_s,
+            "radio": rt.config.radio.value,
+            "radio_model": rt.channel.settings(),
+            "relay": rt.config.relay,
+            "initial_ttl": rt.config.mesh.initial_ttl,
+            "heartbeat_period_s": rt.config.mesh.heartbeat_period_s,
+            "link_lost_after_missed_heartbeats": rt.config.mesh.lost_after_missed,
+            "reconnect_window_s": rt.config.brain.reconnect_window_s,
             "ack_timeout_s": rt.config.ack_timeout_s,
             "max_sends": rt.config.max_sends,
             "physics_dt_s": rt.config.physics_dt,
@@ -64,9 +54,73 @@ def build_result(scenario, rt, verdict, wall_time_s: float, map_model) -> dict:
         },
         "robots": robots,
         "protocol": protocol,
+        "network": network,
         "metrics": _clean(verdict.metrics),
         "events": [[e.time_s, e.robot, e.kind, e.detail] for b in rt.brains.values() for e in b.log],
     }
+
+
+def protocol_summary(rt) -> dict:
+    """End-to-end protocol figures: frames the endpoints originated (unicast and broadcast apart),
+    what the radio did with them at their intended receivers, and commands confirmed / sent."""
+    endpoints = [b.endpoint.stats for b in rt.brains.values()]
+    medium = rt.medium.stats
+    commands = [c for b in rt.brains.values() for c in b.outgoing.values()]
+    confirmed = sum(1 for c in commands if c.result is not None and not c.failed)
+    return {
+        "frames_sent": sum(s.frames_sent for s in endpoints),
+        "unicast_frames_sent": sum(s.frames_sent - s.broadcasts_sent for s in endpoints),
+        "broadcast_frames_sent": sum(s.broadcasts_sent for s in endpoints),
+        "unicast_receptions": {"delivered": medium.unicast_delivered, "lost": medium.unicast_lost},
+        "broadcast_receptions": {"delivered": medium.broadcast_delivered, "lost": medium.broadcast_lost},
+        "frames_lost": medium.unicast_lost + medium.broadcast_lost,
+        "frames_out_of_range": medium.receptions_lost["out_of_range"],
+        "retries": sum(s.retries for s in endpoints),
+        "confirms": sum(s.confirms_sent for s in endpoints),
+        "confirms_received": sum(s.confirms_received for s in endpoints),
+        "duplicates_suppressed": sum(s.duplicates for s in endpoints),
+        "frames_rejected": sum(s.frames_rejected for s in endpoints),
+        "delivery_failures": sum(s.delivery_failures for s in endpoints),
+        "commands_sent": len(commands),
+        "commands_confirmed": confirmed,
+        "delivery_ratio": round(confirmed / len(commands), 4) if commands else None,
+        "commands_failed": sum(b.commands_failed for b in rt.brains.values()),
+        "bytes_sent": sum(s.bytes_sent for s in endpoints),
+        "max_frame_bytes": medium.max_frame_bytes,
+        "max_logical_frame_bytes": max((s.max_frame_bytes for s in endpoints), default=0),
+    }
+
+
+def network_summary(rt) -> dict:
+    """The mesh and the air: relaying, hops, collisions, airtime, segmentation, neighbour tables."""
+    medium = rt.medium.stats
+    hops: dict[int, int] = {}
+    for stack in rt.stacks.values():
+        for count, n in stack.hops_histogram.items():
+            hops[count] = hops.get(count, 0) + n
+    nodes = [stack.node.stats for stack in rt.stacks.values()]
+    return {
+        "relayed_frames": medium.relayed_transmissions,
+        "max_hops_delivered": max(hops, default=0),
+        "hops_histogram": {str(k): hops[k] for k in sorted(hops)},
+        "collisions": medium.collisions,
+        "airtime_s": round(medium.airtime_s, 4),
+        "transmissions": medium.transmissions,
+        "segment_transmissions": medium.segment_transmissions,
+        "segmented_messages": sum(n.transfers_started for n in nodes),
+        "segmented_messages_complete": sum(n.transfers_complete for n in nodes),
+        "receptions_delivered": medium.receptions_delivered,
+        "receptions_lost": dict(medium.receptions_lost),
+        "neighbours": {name: [_neighbour(n) for n in stack.node.neighbours()] for name, stack in rt.stacks.items()},
+    }
+
+
+def _neighbour(info) -> dict:
+    from rescuemesh.robot import robot_name
+
+    return {"robot": robot_name(info.address) if 1 <= info.address <= 254 else info.address, "hops": info.hops,
+            "rssi_dbm": None if info.rssi_dbm is None else round(info.rssi_dbm, 1),
+            "last_heard_s": round(info.last_heard_s, 3), "lost": info.lost}
 
 
 def _clean(value):

@@ -1,8 +1,9 @@
 """timeline.png: what each robot did and what crossed the radio, on one time axis.
 
 Owns: the timeline figure. Top: each robot's speed, with its key events marked (commands sent,
-Stop arrival, behaviours given up). Bottom: every frame each robot sent, by message type, delivered
-or lost, first send or resend. Must not know: how the run was scripted.
+Stop arrival, behaviours given up, links lost and resumed). Bottom: every frame each radio put on
+the air, by message kind: heard by its destination or not, first send or resend, relayed, and
+collisions. Must not know: how the run was scripted.
 """
 
 from __future__ import annotations
@@ -14,8 +15,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from rescuemesh.protocol import FrameError, MessageType  # noqa: E402
-from rescuemesh.protocol.codec import decode_frame  # noqa: E402
+from rescuemesh.protocol import MessageType  # noqa: E402
 from rescuemesh.report.plots import COLOURS  # noqa: E402
 from rescuemesh.robot import robot_name  # noqa: E402
 
@@ -26,19 +26,20 @@ EVENT_MARKS = {
     "command_given_up": ("D", "command given up"),
     "follow_given_up": ("D", "command given up"),
     "behaviour_ended": ("|", "behaviour ended"),
+    "link_lost": ("v", "link lost (paused)"),
+    "link_resumed": ("^", "link resumed"),
 }
 #: Rows of the radio panel: message kinds, bottom to top.
-KINDS = ("Heartbeat", "Confirm", "PoseUpdate", "Command")
+KINDS = ("Heartbeat", "Confirm", "PoseUpdate", "Command", "Bulk")
+_KIND_OF_TYPE = {MessageType.HEARTBEAT: "Heartbeat", MessageType.CONFIRM: "Confirm",
+                 MessageType.SEGMENT_ACK: "Confirm", MessageType.POSE_UPDATE: "PoseUpdate",
+                 MessageType.DATA: "Bulk"}
 
 
-def _kind(msg_type: MessageType) -> str:
-    if msg_type == MessageType.HEARTBEAT:
-        return "Heartbeat"
-    if msg_type == MessageType.CONFIRM:
-        return "Confirm"
-    if msg_type == MessageType.POSE_UPDATE:
-        return "PoseUpdate"
-    return "Command"
+def _kind(record) -> str:
+    if record.segment is not None:
+        return "Bulk"
+    return _KIND_OF_TYPE.get(record.msg_type, "Command")
 
 
 def plot_timeline(rt, path: Path, *, title: str = "") -> Path:
@@ -65,24 +66,26 @@ def plot_timeline(rt, path: Path, *, title: str = "") -> Path:
     ax_speed.set_title(title, fontsize=11)
 
     lanes = {(name, kind): i for i, (name, kind) in enumerate((n, k) for n in names for k in KINDS)}
-    styles = {  # (delivered, resend) -> marker style
-        (True, False): dict(marker="|", color="0.35", ms=9, label="delivered"),
-        (True, True): dict(marker="|", color="#ff7f0e", ms=11, mew=2, label="delivered (resend)"),
-        (False, False): dict(marker="x", color="#d62728", ms=6, label="lost"),
-        (False, True): dict(marker="x", color="#9467bd", ms=7, mew=2, label="lost (resend)"),
+    styles = {  # mark kind -> marker style
+        "heard": dict(marker="|", color="0.35", ms=9, label="heard by its destination"),
+        "resend": dict(marker="|", color="#ff7f0e", ms=11, mew=2, label="heard (resend)"),
+        "relayed": dict(marker="o", mfc="none", color="#1f77b4", ms=5, mew=1.0, label="relayed (this radio relays)"),
+        "lost": dict(marker="x", color="#d62728", ms=6, label="not heard by its destination"),
+        "collision": dict(marker="*", color="k", mfc="#ffeb3b", ms=9, mew=0.6, label="collision at a receiver"),
     }
-    points: dict[tuple[bool, bool], tuple[list[float], list[float]]] = {k: ([], []) for k in styles}
-    for record in rt.link.records or []:
-        try:
-            header, _ = decode_frame(record.frame)
-        except FrameError:
-            continue
-        lane = lanes.get((robot_name(record.src), _kind(header.msg_type)))
+    points: dict[str, tuple[list[float], list[float]]] = {k: ([], []) for k in styles}
+    for record in rt.medium.records or []:
+        lane = lanes.get((robot_name(record.transmitter), _kind(record)))
         if lane is None:
             continue
-        key = (record.arrived_s is not None, header.attempt > 0)
-        points[key][0].append(record.sent_s)
+        heard = record.dst_heard if record.dst_heard is not None else record.heard_by > 0
+        resend = record.segment is None and record.frame[1] >> 6 > 0  # attempt bits (docs/protocol.md)
+        key = "relayed" if record.relayed else ("lost" if not heard else ("resend" if resend else "heard"))
+        points[key][0].append(record.start_s)
         points[key][1].append(lane)
+        if record.collided:
+            points["collision"][0].append(record.start_s)
+            points["collision"][1].append(lane + 0.3)
     for key, style in styles.items():
         xs, ys = points[key]
         if xs:
@@ -92,7 +95,7 @@ def plot_timeline(rt, path: Path, *, title: str = "") -> Path:
         ax_radio.axhline(boundary - 0.5, color="0.6", lw=0.6)
     ax_radio.set_ylim(-0.6, len(lanes) - 0.4)
     ax_radio.set_xlabel("simulated time [s]")
-    ax_radio.set_title("frames sent, by sender and kind (one mark per intended receiver)", fontsize=9)
+    ax_radio.set_title("frames on the air, by radio and kind (one mark per transmission)", fontsize=9)
     ax_radio.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
     ax_radio.grid(True, axis="x", lw=0.3, alpha=0.5)
     fig.tight_layout()

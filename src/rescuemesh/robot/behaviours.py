@@ -2,7 +2,8 @@
 
 Owns: each behaviour's state and its use of NavigateToPose. Must not know: the protocol wire,
 the simulator, who commanded the behaviour (the brain keeps that).
-A behaviour is stepped with (now, pose, scan) and returns a body twist (v in m/s, omega in rad/s).
+A behaviour is stepped with (now, pose, scan) and returns a body twist (v in m/s, omega in rad/s);
+it can be paused (halted, its goal cancelled) and resumed when a partner's link drops and returns.
 """
 
 from __future__ import annotations
@@ -13,23 +14,41 @@ from dataclasses import dataclass, field
 from rescuemesh.body import LaserScan
 from rescuemesh.geometry import Pose2D, yaw_to_quaternion
 from rescuemesh.nav import GoalStatus, NavigateToPose
+from rescuemesh.protocol import Reason, ResultCode
 
 STOPPED = (0.0, 0.0)
 
 
 class Behaviour:
-    """Base: `step` until `outcome` is set to "done" or "failed" (with `reason`)."""
+    """Base: `step` until `outcome` is set to DONE or FAILED (with a `reason` code and a `detail`)."""
 
     name = "behaviour"
 
     def __init__(self, nav: NavigateToPose) -> None:
         self.nav = nav
-        self.outcome: str | None = None
-        self.reason = ""
+        self.outcome: ResultCode | None = None
+        self.reason = Reason.NONE
+        self.detail = ""
+        self.paused = False
 
     @property
     def finished(self) -> bool:
         return self.outcome is not None
+
+    def pause(self, now: float) -> None:
+        """Halt and wait (the partner's link is lost): cancel the goal; `step` returns STOPPED."""
+        if not self.paused:
+            self.paused = True
+            self.halt(now)
+
+    def resume(self, now: float) -> None:
+        """Carry on after a pause: send the goal again."""
+        if self.paused:
+            self.paused = False
+            self._restart(now)
+
+    def _restart(self, now: float) -> None:
+        """Send the navigation goal again after a pause (each behaviour knows its goal)."""
 
     def progress(self) -> int:
         """Percent done, 255 when unknown (MAVLink COMMAND_ACK convention)."""
@@ -42,8 +61,8 @@ class Behaviour:
         """Stop driving: cancel the navigation goal."""
         self.nav.cancel(now)
 
-    def _finish(self, outcome: str, reason: str = "") -> tuple[float, float]:
-        self.outcome, self.reason = outcome, reason
+    def _finish(self, outcome: ResultCode, reason: Reason = Reason.NONE, detail: str = "") -> tuple[float, float]:
+        self.outcome, self.reason, self.detail = outcome, reason, detail
         return STOPPED
 
 
@@ -57,14 +76,20 @@ class NavigateBehaviour(Behaviour):
         self.goal = goal
         self.goal_id = nav.send_goal(goal, now)
 
+    def _restart(self, now: float) -> None:
+        self.goal_id = self.nav.send_goal(self.goal, now)
+
     def step(self, now, pose, scan):
+        if self.paused:
+            return STOPPED
         v_w = self.nav.step(now, pose, scan)
         while (result := self.nav.next_result()) is not None:
             if result.goal_id != self.goal_id:
                 continue
             if result.status is GoalStatus.SUCCEEDED:
-                return self._finish("done")
-            return self._finish("failed", f"navigation {result.status.name.lower()}: {result.reason}")
+                return self._finish(ResultCode.DONE)
+            reason = Reason.NO_PATH if "no path" in str(result.reason).lower() else Reason.STUCK
+            return self._finish(ResultCode.FAILED, reason, f"navigation {result.status.name.lower()}: {result.reason}")
         return v_w
 
 
@@ -73,17 +98,21 @@ class FollowBehaviour(Behaviour):
 
     PoseUpdates come at 2 Hz; between them the leader's position is predicted from its velocity
     over the last two updates, at most `predict_horizon_s` ahead, so the follower moves smoothly
-    instead of lurching at each update. The leader is lost when no PoseUpdate has come for
-    `partner_timeout_s`: then the robot stops.
+    instead of lurching at each update. When no PoseUpdate has come for `partner_timeout_s` the
+    robot halts and waits (a robot that loses its partner stops safely); the next PoseUpdate sets
+    it going again. After `partner_give_up_s` of silence the Follow ends FAILED (PARTNER_SILENT):
+    normally the brain's link-loss rule (heartbeats) ends it first, with LINK_LOST.
     """
 
     name = "follow"
 
     def __init__(self, nav, leader: int, target: Pose2D, now: float, *, distance_m: float,
-                 partner_timeout_s: float, regoal_shift_m: float = 0.1, clear_radius_m: float = 0.5,
-                 predict_horizon_s: float = 1.0) -> None:
+                 partner_timeout_s: float, partner_give_up_s: float, regoal_shift_m: float = 0.1,
+                 clear_radius_m: float = 0.5, predict_horizon_s: float = 1.0) -> None:
         super().__init__(nav)
         self.leader = leader
+        self.partner_give_up_s = partner_give_up_s
+        self.holding = False  # halted because the leader went silent
         self.predict_horizon_s = predict_horizon_s
         self.velocity = (0.0, 0.0)  # leader's estimated velocity in the map frame, m/s
         self.distance_m = distance_m
@@ -101,7 +130,12 @@ class FollowBehaviour(Behaviour):
             self.velocity = ((pose.x - self.target.x) / dt, (pose.y - self.target.y) / dt)
         self.target = pose
         self.last_heard = now
-        if self.nav.status is not GoalStatus.ACTIVE:
+        self.holding = False
+        if self.nav.status is not GoalStatus.ACTIVE and not self.paused:
+            self._send_goal(now)
+
+    def _restart(self, now: float) -> None:
+        if not self.holding:
             self._send_goal(now)
 
     def predicted_target(self, now: float) -> Pose2D:
@@ -124,9 +158,17 @@ class FollowBehaviour(Behaviour):
                            clear_radius=self.clear_radius_m)
 
     def step(self, now, pose, scan):
-        if now - self.last_heard > self.partner_timeout_s:
+        silent = now - self.last_heard
+        if silent > self.partner_give_up_s:
             self.halt(now)
-            return self._finish("failed", f"leader silent for {now - self.last_heard:.1f} s")
+            return self._finish(ResultCode.FAILED, Reason.PARTNER_SILENT, f"leader silent for {silent:.1f} s")
+        if self.paused:
+            return STOPPED
+        if silent > self.partner_timeout_s:
+            if not self.holding:
+                self.holding = True
+                self.halt(now)
+            return STOPPED
         self._track(now)
         v_w = self.nav.step(now, pose, scan)
         while self.nav.next_result() is not None:
@@ -184,6 +226,9 @@ class MoveAroundBehaviour(Behaviour):
     def _send(self, now: float) -> int:
         return self.nav.send_goal(self.waypoints[self.current].pose, now, check_yaw=False)
 
+    def _restart(self, now: float) -> None:
+        self._goal_id = self._send(now)
+
     def _advance(self, now: float) -> bool:
         self.current += 1
         if self.current >= len(self.waypoints):
@@ -192,6 +237,8 @@ class MoveAroundBehaviour(Behaviour):
         return True
 
     def step(self, now, pose, scan):
+        if self.paused:
+            return STOPPED
         last = self.current == len(self.waypoints) - 1
         if not last and pose.distance_to(self.waypoints[self.current].pose) < self.pass_radius_m:
             self._advance(now)  # pass through intermediate waypoints without stopping
@@ -203,7 +250,7 @@ class MoveAroundBehaviour(Behaviour):
                 self.unreached.append(self.waypoints[self.current])
             if not self._advance(now):
                 if len(self.unreached) == len(self.waypoints):
-                    return self._finish("failed", "no waypoint reachable")
-                return self._finish("done")
+                    return self._finish(ResultCode.FAILED, Reason.BLOCKED, "no waypoint reachable")
+                return self._finish(ResultCode.DONE)
             v_w = STOPPED
         return v_w

@@ -1,13 +1,16 @@
 """RobotBrain: one robot's command handler, as section IV of the paper describes.
 
-Owns: what the robot does with each protocol event (a table of command handlers), the leader's
-PoseUpdate stream, heartbeats, and which behaviour runs. Must not know: the simulator, the
-transport, wall-clock time. It drives a `Body` and an `Endpoint`, and is stepped with `now`.
+Owns: what the robot does with each protocol and network event (tables of handlers), the leader's
+PoseUpdate stream, heartbeats, link-loss pauses, ForwardMsg jobs, which behaviour runs. Must not
+know: the simulator, the transport, wall-clock time. It drives a `Body` and a network stack.
 
 Rules: every command and PoseUpdate gets a Confirm. Stop preempts everything. A newer motion
 command replaces the running one, whose commander gets a CANCELLED report. Commands not built
-yet are answered UNSUPPORTED. A Follow stream is given up after `max_sends` consecutive
-PoseUpdates failed (docs/design.md says why the retry rule is applied per update).
+yet are answered UNSUPPORTED. Link loss (paper IV.A, "stop command execution in case of
+disconnecting and failing to reconnect"): when the mesh layer reports a peer lost (missed
+heartbeats), a command shared with it pauses at once (a moving robot halts) and a reconnect
+window opens; heard again within it, the command resumes; if not, both sides end it FAILED
+(LINK_LOST). docs/design.md has the timings.
 """
 
 from __future__ import annotations
@@ -16,13 +19,16 @@ from dataclasses import dataclass, field
 
 from rescuemesh.body import Body
 from rescuemesh.geometry import Pose2D
+from rescuemesh.mesh import NeighbourFound, NeighbourLost, TransferComplete, TransferFailed
 from rescuemesh.nav import Costmap, NavigateToPose
 from rescuemesh.protocol import (
     CommandReceived,
     ConfirmReceived,
+    Data,
+    DataReceived,
     DeliveryFailed,
-    Endpoint,
     Follow,
+    ForwardMsg,
     FrameRejected,
     HeartbeatReceived,
     MessageType,
@@ -30,6 +36,7 @@ from rescuemesh.protocol import (
     Pose,
     PoseUpdate,
     PoseUpdateReceived,
+    Reason,
     ResultCode,
     Stop,
 )
@@ -40,6 +47,7 @@ from rescuemesh.robot.behaviours import (
     NavigateBehaviour,
     circle_waypoints,
 )
+from rescuemesh.robot.forwarding import Forwarder
 from rescuemesh.robot.naming import robot_name
 
 
@@ -49,9 +57,16 @@ class BrainConfig:
 
     follow_distance_m: float = 1.0
     pose_update_rate_hz: float = 2.0
-    heartbeat_period_s: float = 1.0
-    partner_timeout_s: float = 3.0  # follower stops when its leader is silent this long
+    heartbeat_period_s: float = 1.0  # must equal the mesh layer's (it counts missed heartbeats)
+    partner_timeout_s: float = 1.5  # a follower halts when its leader sends no PoseUpdate this long (3 updates)
+    reconnect_window_s: float = 5.0  # after a peer is lost: resume if heard again within it, else FAILED
+    #: Safety nets for a link that works one way only (heartbeats heard, PoseUpdates not): a follower
+    #: with no PoseUpdate, a leader with no confirmed PoseUpdate, this long, in s, ends the Follow.
+    #: Longer than the link-loss rule (3.5 s + reconnect window), which normally ends it first.
+    partner_give_up_s: float = 10.0
     move_around_waypoints: int = 20
+    forward_timeout_s: float = 30.0  # how long a ForwardMsg is held for an unreachable target
+    forward_capacity: int = 8  # ForwardMsg jobs held at once
 
 
 @dataclass(frozen=True, slots=True)
@@ -66,14 +81,18 @@ class BrainEvent:
 
 @dataclass
 class OutgoingCommand:
-    """A command this robot sent, and what became of it."""
+    """A command this robot sent, and what became of it: the latest result and reason reported,
+    the sends the first Confirm took and the hops it crossed; `failed` when given up unconfirmed."""
 
     seq: int
     peer: int
     kind: str
     sent_s: float
+    msg_type: MessageType = MessageType.STOP
     result: ResultCode | None = None
+    reason: Reason = Reason.NONE
     sends: int = 0
+    hops: int | None = None
     failed: bool = False
 
 
@@ -84,19 +103,22 @@ class _PoseStream:
     follower: int
     follow_seq: int  # the Follow command this stream serves
     next_send_s: float
+    last_confirmed_s: float
     failed_in_a_row: int = 0
+    paused: bool = False  # the follower's link is lost: no PoseUpdates until it is heard again
     outstanding: set[int] = field(default_factory=set)
 
 
 @dataclass(frozen=True, slots=True)
 class FinishedBehaviour:
-    """A behaviour that ran: its name, when it ran (s), its final result and why."""
+    """A behaviour that ran: its name, when it ran (s), its final result, why (code and words)."""
 
     name: str
     started_s: float
     ended_s: float
     result: ResultCode
     reason: str
+    code: Reason = Reason.NONE
 
 
 @dataclass
@@ -109,7 +131,15 @@ class _Running:
 
 
 #: Commands that move the receiver: when one is given up, the sender sends Stop in case it runs.
-MOTION_COMMANDS = frozenset({"Follow", "MoveAround", "Goto", "Return", "LandOnTop"})
+MOTION_COMMANDS = frozenset({MessageType.FOLLOW, MessageType.MOVE_AROUND, MessageType.GOTO, MessageType.RETURN,
+                             MessageType.LAND_ON_TOP})
+
+
+def heartbeat_phase_s(address: int, period_s: float) -> float:
+    """When a robot sends its first heartbeat, in s: spread over the period by address (golden-ratio
+    spacing), so a team's beacons do not all leave on one control tick as unsynchronised robots'
+    would not (collisions on the air otherwise)."""
+    return (address * 0.6180339887498949) % 1.0 * period_s
 
 
 def to_wire_pose(pose: Pose2D) -> Pose:
@@ -123,12 +153,15 @@ def from_wire_pose(pose: Pose) -> Pose2D:
 class RobotBrain:
     """The brain of robot `name`: give it a body, an endpoint, a navigator, and step it."""
 
-    def __init__(self, name: str, body: Body, endpoint: Endpoint, nav: NavigateToPose, costmap: Costmap,
+    def __init__(self, name: str, body: Body, network, nav: NavigateToPose, costmap: Costmap,
                  config: BrainConfig | None = None) -> None:
+        """`network`: the robot's network stack (rescuemesh.mesh.NetworkStack: `.endpoint`,
+        `next_event()`, `is_reachable(address, now)`)."""
         self.name = name
-        self.address = endpoint.address
+        self.address = network.endpoint.address
         self.body = body
-        self.endpoint = endpoint
+        self.network = network
+        self.endpoint = network.endpoint
         self.nav = nav
         self.costmap = costmap
         self.config = config or BrainConfig()
@@ -139,8 +172,21 @@ class RobotBrain:
         self.finished: list[FinishedBehaviour] = []
         self.commands_failed = 0
         self.frames_rejected = 0
-        self._next_heartbeat_s = 0.0
-        self._handlers = {Follow: self._on_follow, Stop: self._on_stop, MoveAround: self._on_move_around}
+        self.lost_peers: dict[int, float] = {}  # peer with a shared command -> end of its reconnect window (s)
+        self.forwarder = Forwarder(self.address, timeout_s=self.config.forward_timeout_s,
+                                   capacity=self.config.forward_capacity)
+        self._next_heartbeat_s = heartbeat_phase_s(self.address, self.config.heartbeat_period_s)
+        self._handlers = {Follow: self._on_follow, Stop: self._on_stop, MoveAround: self._on_move_around,
+                          ForwardMsg: self._on_forward}
+        self._on_protocol = {
+            CommandReceived: self._on_command, PoseUpdateReceived: self._on_pose_update,
+            ConfirmReceived: self._on_confirm, DeliveryFailed: self._on_delivery_failed,
+            FrameRejected: self._on_frame_rejected, HeartbeatReceived: _ignore, DataReceived: self._on_data,
+        }
+        self._on_network = {
+            NeighbourLost: self._on_neighbour_lost, NeighbourFound: self._on_neighbour_found,
+            TransferComplete: _ignore, TransferFailed: self._on_transfer_failed,
+        }
 
     # ----- what a mission script (or, later, an operator or ROS node) asks of this robot -----
 
@@ -168,9 +214,14 @@ class RobotBrain:
     # ----- the loop -----
 
     def step(self, now: float) -> None:
-        """Handle what the endpoint received, stream poses, heartbeat, and drive the body."""
+        """Handle what the endpoint and the network reported, keep links and jobs, stream poses,
+        heartbeat, and drive the body."""
         while (event := self.endpoint.next_event()) is not None:
-            self._on_event(event, now)
+            self._on_protocol[type(event)](event, now)
+        while (event := self.network.next_event()) is not None:
+            self._on_network[type(event)](event, now)
+        self._end_lost_links(now)
+        self._forward(now)
         self._stream_poses(now)
         if now >= self._next_heartbeat_s:
             active = self.running.msg_type if self.running and self.running.msg_type else 0
@@ -181,45 +232,43 @@ class RobotBrain:
             behaviour = self.running.behaviour
             velocity = behaviour.step(now, self.body.pose(), self.body.scan())
             if behaviour.finished:
-                self._end_running(now, ResultCode.DONE if behaviour.outcome == "done" else ResultCode.FAILED,
-                                  behaviour.reason)
+                self._end_running(now, behaviour.outcome, behaviour.reason, behaviour.detail)
         self.body.set_velocity(*velocity)
 
     # ----- receiving -----
 
-    def _on_event(self, event, now: float) -> None:
+    def _forget_reused_seq(self, event) -> None:
         running = self.running
-        if isinstance(event, (CommandReceived, PoseUpdateReceived)) and running is not None \
-                and (running.commander, running.seq) == (event.src, event.seq):
+        if running is not None and (running.commander, running.seq) == (event.src, event.seq):
             # The sender reused the running command's seq (it restarted, or its counter wrapped): a
             # final report for the old command would now answer this new frame. Report nothing.
             running.seq = None
-        if isinstance(event, CommandReceived):
-            self._note(event.now, "command_received", f"{type(event.command).__name__} from {robot_name(event.src)}")
-            handler = self._handlers.get(type(event.command), self._on_unsupported)
-            handler(event, now)
-        elif isinstance(event, PoseUpdateReceived):
-            self._on_pose_update(event, now)
-        elif isinstance(event, ConfirmReceived):
-            self._on_confirm(event, now)
-        elif isinstance(event, DeliveryFailed):
-            self._on_delivery_failed(event, now)
-        elif isinstance(event, FrameRejected):
-            self.frames_rejected += 1
-            self._note(event.now, "frame_rejected", event.reason)
-        elif isinstance(event, HeartbeatReceived):
-            pass
 
-    def _confirm(self, event, result: ResultCode, now: float, progress: int = 255) -> None:
+    def _on_command(self, event: CommandReceived, now: float) -> None:
+        self._forget_reused_seq(event)
+        hops = f" ({event.hops} hops)" if event.hops > 1 else ""
+        self._note(event.now, "command_received", f"{type(event.command).__name__} from {robot_name(event.src)}{hops}")
+        self._handlers.get(type(event.command), self._on_unsupported)(event, now)
+
+    def _on_frame_rejected(self, event: FrameRejected, now: float) -> None:
+        self.frames_rejected += 1
+        self._note(event.now, "frame_rejected", event.reason)
+
+    def _on_data(self, event: DataReceived, now: float) -> None:
+        self.endpoint.confirm(event.src, event.seq, MessageType.DATA, ResultCode.ACCEPTED, now)
+        self._note(event.now, "data_received", f"{event.kind.name} {len(event.data)} B from {robot_name(event.src)}")
+
+    def _confirm(self, event, result: ResultCode, now: float, progress: int = 255,
+                 reason: Reason = Reason.NONE) -> None:
         ref_type = MessageType.POSE_UPDATE if isinstance(event, PoseUpdateReceived) else event.command.TYPE
-        self.endpoint.confirm(event.src, event.seq, ref_type, result, now, progress=progress)
+        self.endpoint.confirm(event.src, event.seq, ref_type, result, now, progress=progress, reason=reason)
 
     def _on_unsupported(self, event: CommandReceived, now: float) -> None:
         self._confirm(event, ResultCode.UNSUPPORTED, now)
 
     def _on_stop(self, event: CommandReceived, now: float) -> None:
         self.streams.clear()
-        self._end_running(now, ResultCode.CANCELLED, f"stopped by {robot_name(event.src)}")
+        self._end_running(now, ResultCode.CANCELLED, Reason.STOPPED, f"stopped by {robot_name(event.src)}")
         self.body.set_velocity(0.0, 0.0)
         self._confirm(event, ResultCode.DONE, now)
         self._note(event.now, "stopped", f"by {robot_name(event.src)}")
@@ -227,7 +276,8 @@ class RobotBrain:
     def _on_follow(self, event: CommandReceived, now: float) -> None:
         behaviour = FollowBehaviour(self.nav, event.src, from_wire_pose(event.command.frame), now,
                                     distance_m=self.config.follow_distance_m,
-                                    partner_timeout_s=self.config.partner_timeout_s)
+                                    partner_timeout_s=self.config.partner_timeout_s,
+                                    partner_give_up_s=self.config.partner_give_up_s)
         self._start(_Running(behaviour, now, event.src, event.seq, event.command.TYPE), now)
         self._confirm(event, ResultCode.ACCEPTED, now)
 
@@ -241,21 +291,32 @@ class RobotBrain:
             indices = dict.fromkeys(p.index for p in skipped)  # the closing repeat of the first is one waypoint
             self._note(now, "waypoints_skipped", ", ".join(str(i) for i in indices))
         if not free:
-            self._confirm(event, ResultCode.DENIED, now)
+            self._confirm(event, ResultCode.DENIED, now, reason=Reason.BLOCKED)
             self._note(now, "command_denied", "MoveAround: every waypoint is inside an obstacle")
             return
         behaviour = MoveAroundBehaviour(self.nav, free, skipped, now)
         self._start(_Running(behaviour, now, event.src, event.seq, event.command.TYPE), now)
         self._confirm(event, ResultCode.ACCEPTED, now, progress=0)
 
+    def _on_forward(self, event: CommandReceived, now: float) -> None:
+        command: ForwardMsg = event.command
+        job = self.forwarder.accept(event.src, event.seq, command.target, command.message, now)
+        if isinstance(job, Reason):
+            self._confirm(event, ResultCode.DENIED, now, reason=job)
+            self._note(now, "command_denied", f"ForwardMsg to {command.target}: {job.name}")
+            return
+        self._confirm(event, ResultCode.ACCEPTED, now)
+        self._note(now, "forward_accepted", f"{type(job.inner).__name__} for {robot_name(job.target)}")
+
     def _on_pose_update(self, event: PoseUpdateReceived, now: float) -> None:
+        self._forget_reused_seq(event)
         running = self.running
         if running is not None and isinstance(running.behaviour, FollowBehaviour) \
                 and running.behaviour.leader == event.src:
             running.behaviour.on_pose_update(from_wire_pose(event.pose), event.now)
             self._confirm(event, ResultCode.ACCEPTED, now)
         else:
-            self._confirm(event, ResultCode.DENIED, now)
+            self._confirm(event, ResultCode.DENIED, now, reason=Reason.NOT_FOLLOWING)
 
     def _on_confirm(self, event: ConfirmReceived, now: float) -> None:
         stream = self.streams.get(event.src)
@@ -263,39 +324,43 @@ class RobotBrain:
             if stream is not None and event.ref_seq in stream.outstanding:
                 stream.outstanding.discard(event.ref_seq)
                 if event.result == ResultCode.ACCEPTED:
-                    stream.failed_in_a_row = 0
+                    stream.failed_in_a_row, stream.last_confirmed_s = 0, now
                 else:
                     del self.streams[event.src]
                     self._note(now, "follow_ended", f"{robot_name(event.src)} answered {event.result.name}")
             return
+        ended = self.forwarder.confirmed(event.src, event.ref_seq)
+        if ended is not None:
+            self._report_forward(ended, now, f"{robot_name(event.src)} answered {event.result.name}")
+            return
         sent = self.outgoing.get(event.ref_seq)
         if sent is None or sent.peer != event.src:
             return
-        sent.result = event.result
+        sent.result, sent.reason = event.result, event.reason
         if event.solicited:
-            sent.sends = event.sends
-        self._note(event.now, "confirm", f"{sent.kind} by {robot_name(event.src)}: {event.result.name}")
-        if sent.kind == "Follow" and event.solicited and event.result == ResultCode.ACCEPTED \
+            sent.sends, sent.hops = event.sends, event.hops
+        why = f" ({event.reason.name})" if event.reason is not Reason.NONE else ""
+        hops = f", {event.hops} hops" if event.hops > 1 else ""
+        self._note(event.now, "confirm", f"{sent.kind} by {robot_name(event.src)}: {event.result.name}{why}{hops}")
+        if sent.msg_type is MessageType.FOLLOW and event.solicited and event.result == ResultCode.ACCEPTED \
                 and not self._stopped_since(event.src, sent.sent_s):
-            self.streams[event.src] = _PoseStream(event.src, event.ref_seq, next_send_s=now)
-        elif sent.kind == "Follow" and event.result in (ResultCode.CANCELLED, ResultCode.FAILED):
+            self.streams[event.src] = _PoseStream(event.src, event.ref_seq, next_send_s=now, last_confirmed_s=now)
+        elif sent.msg_type is MessageType.FOLLOW and event.result in (ResultCode.CANCELLED, ResultCode.FAILED):
             stream = self.streams.get(event.src)
             if stream is not None and stream.follow_seq == event.ref_seq:
                 del self.streams[event.src]
 
     def _on_delivery_failed(self, event: DeliveryFailed, now: float) -> None:
         if isinstance(event.message, PoseUpdate):
+            # Counted only: a lost follower is found out by its missed heartbeats (link-loss rule),
+            # and a stream that gets no Confirm at all is ended by the give-up safety net.
             stream = self.streams.get(event.dst)
-            if stream is None or event.seq not in stream.outstanding:
-                return
-            stream.outstanding.discard(event.seq)
-            stream.failed_in_a_row += 1
-            if stream.failed_in_a_row >= self.endpoint.config.reliability.max_sends:  # the frame rule, per update
-                del self.streams[event.dst]
-                self.commands_failed += 1
-                self._note(now, "follow_given_up",
-                           f"{robot_name(event.dst)}: {stream.failed_in_a_row} PoseUpdates in a row unconfirmed")
-                self.command_stop(event.dst, now)  # best effort; the follower also stops on its own timeout
+            if stream is not None and event.seq in stream.outstanding:
+                stream.outstanding.discard(event.seq)
+                stream.failed_in_a_row += 1
+            return
+        if self.forwarder.undelivered(event.dst, event.seq):
+            self._note(now, "forward_undelivered", f"to {robot_name(event.dst)}: will try again while reachable")
             return
         sent = self.outgoing.get(event.seq)
         if sent is None:
@@ -303,9 +368,89 @@ class RobotBrain:
         sent.failed, sent.sends = True, event.sends
         self.commands_failed += 1
         self._note(now, "command_given_up", f"{sent.kind} to {robot_name(event.dst)} after {event.sends} sends")
-        if sent.kind in MOTION_COMMANDS:
+        if sent.msg_type in MOTION_COMMANDS:
             # The receiver may have executed it with every Confirm lost: bring both sides to a stop.
             self.command_stop(event.dst, now)
+
+    def _on_transfer_failed(self, event: TransferFailed, now: float) -> None:
+        self._note(now, "transfer_failed",
+                   f"to {robot_name(event.dst)}: {event.acked} of {event.total} segments acknowledged")
+
+    # ----- link loss (paper IV.A): pause, reconnect window, give up -----
+
+    def _shares_command_with(self, peer: int) -> bool:
+        running = self.running
+        return (running is not None and running.commander == peer) or peer in self.streams
+
+    def _on_neighbour_lost(self, event: NeighbourLost, now: float) -> None:
+        peer = event.address
+        if not self._shares_command_with(peer) or peer in self.lost_peers:
+            return
+        self.lost_peers[peer] = now + self.config.reconnect_window_s
+        if self.running is not None and self.running.commander == peer:
+            self.running.behaviour.pause(now)
+            self.body.set_velocity(0.0, 0.0)
+        if peer in self.streams:
+            self.streams[peer].paused = True
+        self._note(now, "link_lost", f"{robot_name(peer)} silent since {event.last_heard_s:.2f} s: paused, "
+                                     f"reconnect window {self.config.reconnect_window_s:g} s")
+
+    def _on_neighbour_found(self, event: NeighbourFound, now: float) -> None:
+        peer = event.address
+        if self.lost_peers.pop(peer, None) is None:
+            return
+        if self.running is not None and self.running.commander == peer:
+            self.running.behaviour.resume(now)
+        stream = self.streams.get(peer)
+        if stream is not None:
+            stream.paused, stream.last_confirmed_s = False, now
+            stream.next_send_s = now
+        self._note(now, "link_resumed", f"{robot_name(peer)} heard again ({event.hops} hops): resumed")
+
+    def _end_lost_links(self, now: float) -> None:
+        for peer, deadline in list(self.lost_peers.items()):
+            if now < deadline:
+                continue
+            del self.lost_peers[peer]
+            if self.running is not None and self.running.commander == peer:
+                self._end_running(now, ResultCode.FAILED, Reason.LINK_LOST, "link lost")
+            if peer in self.streams:
+                self._end_stream(peer, now, Reason.LINK_LOST, "link lost")
+        for peer, stream in list(self.streams.items()):
+            if not stream.paused and now - stream.last_confirmed_s > self.config.partner_give_up_s:
+                self._end_stream(peer, now, Reason.PARTNER_SILENT,
+                                 f"no PoseUpdate confirmed for {now - stream.last_confirmed_s:.1f} s")
+
+    def _end_stream(self, peer: int, now: float, reason: Reason, detail: str) -> None:
+        stream = self.streams.pop(peer)
+        sent = self.outgoing.get(stream.follow_seq)
+        if sent is not None:
+            sent.result, sent.reason = ResultCode.FAILED, reason
+        self.commands_failed += 1
+        self._note(now, "follow_given_up", f"{robot_name(peer)}: {detail}")
+        self.command_stop(peer, now)  # best effort: "both sides stop it"
+
+    # ----- ForwardMsg jobs -----
+
+    def _forward(self, now: float) -> None:
+        for job in self.forwarder.due(now, self.network.is_reachable):
+            if isinstance(job.inner, Data):
+                seq = self.endpoint.send_data(job.target, job.inner.kind, job.inner.ref_seq, job.inner.data, now)
+            else:
+                seq = self.endpoint.send_command(job.target, job.inner, now)
+            self.forwarder.sent(job, seq)
+            self._note(now, "forward_sent", f"{type(job.inner).__name__} to {robot_name(job.target)} "
+                                            f"for {robot_name(job.sender)}")
+        for ended in self.forwarder.expired(now):
+            self._report_forward(ended, now, f"{robot_name(ended.job.target)} not reached in "
+                                             f"{self.config.forward_timeout_s:g} s")
+
+    def _report_forward(self, ended, now: float, detail: str) -> None:
+        job = ended.job
+        progress = 100 if ended.result == ResultCode.DONE else 255
+        self.endpoint.confirm(job.sender, job.seq, MessageType.FORWARD_MSG, ended.result, now,
+                              progress=progress, reason=ended.reason)
+        self._note(now, "forward_ended", f"{ended.result.name} {ended.reason.name}: {detail}".replace(" NONE", ""))
 
     def _stopped_since(self, peer: int, since_s: float) -> bool:
         """Whether this robot sent `peer` a Stop at or after `since_s`."""
@@ -318,14 +463,14 @@ class RobotBrain:
         """Send any command message (its outcome is tracked in `outgoing`)."""
         seq = self.endpoint.send_command(peer, command, now)
         kind = type(command).__name__
-        self.outgoing[seq] = OutgoingCommand(seq, peer, kind, now)
+        self.outgoing[seq] = OutgoingCommand(seq, peer, kind, now, command.TYPE)
         self._note(now, "command_sent", f"{kind} to {robot_name(peer)}")
         return seq
 
     def _stream_poses(self, now: float) -> None:
         period = 1.0 / self.config.pose_update_rate_hz
         for stream in self.streams.values():
-            if now + 1e-9 >= stream.next_send_s:
+            if not stream.paused and now + 1e-9 >= stream.next_send_s:
                 seq = self.endpoint.send_pose_update(stream.follower, to_wire_pose(self.body.pose()), now)
                 stream.outstanding.add(seq)
                 stream.next_send_s = max(stream.next_send_s + period, now)
@@ -333,21 +478,28 @@ class RobotBrain:
     # ----- running behaviours -----
 
     def _start(self, running: _Running, now: float) -> None:
-        self._end_running(now, ResultCode.CANCELLED, f"replaced by {running.behaviour.name}")
+        self._end_running(now, ResultCode.CANCELLED, Reason.REPLACED, f"replaced by {running.behaviour.name}")
         self.running = running
         self._note(now, "behaviour_started", running.behaviour.name)
 
-    def _end_running(self, now: float, result: ResultCode, reason: str) -> None:
+    def _end_running(self, now: float, result: ResultCode, code: Reason, reason: str = "") -> None:
         running, self.running = self.running, None
         if running is None:
             return
         running.behaviour.halt(now)
-        self.finished.append(FinishedBehaviour(running.behaviour.name, running.started_s, now, result, reason))
+        if running.commander is not None:
+            self.lost_peers.pop(running.commander, None)
+        self.finished.append(FinishedBehaviour(running.behaviour.name, running.started_s, now, result, reason, code))
         self._note(now, "behaviour_ended", f"{running.behaviour.name}: {result.name} {reason}".rstrip())
         if running.commander is not None and running.seq is not None:
             # Report the final result to the commander (best effort: an unsolicited Confirm).
             self.endpoint.confirm(running.commander, running.seq, running.msg_type, result, now,
-                                  progress=running.behaviour.progress() if result != ResultCode.DONE else 100)
+                                  progress=running.behaviour.progress() if result != ResultCode.DONE else 100,
+                                  reason=code)
 
     def _note(self, now: float, kind: str, detail: str = "") -> None:
         self.log.append(BrainEvent(round(now, 3), self.name, kind, detail))
+
+
+def _ignore(event, now: float) -> None:
+    """Events this brain has nothing to do with (a heartbeat: the mesh layer keeps liveness)."""

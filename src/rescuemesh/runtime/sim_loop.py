@@ -1,41 +1,57 @@
-"""The in-process simulation loop: MuJoCo world, simulated radio link and robot brains.
+"""The in-process simulation loop: MuJoCo world, simulated radio medium and robot brains.
 
-Owns: the clock (simulated seconds), the control step, assembling a team from a map and start
-poses, and the trajectory record. Must not know: scenarios' scripts and success criteria.
-Each control tick at time t: the world steps to t, the link delivers what is due by t, every
-brain steps at t. The control step is a whole multiple of the physics step.
+Owns: the clock (simulated seconds), the control step, assembling a team (body, endpoint, mesh
+node, brain per robot) from a map and start poses, and the trajectory record. Must not know:
+scenarios' scripts and success criteria. Each control tick at time t: the world steps to t, the
+medium delivers what is due by t, every brain steps at t. The control step is a whole multiple
+of the physics step.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from enum import Enum
 
 import numpy as np
 
 from rescuemesh.geometry import Pose2D
 from rescuemesh.maps import MapModel
+from rescuemesh.mesh import TEAM_RELAY_RETRANSMIT_COUNT, MeshConfig, MeshNode, NetworkStack
 from rescuemesh.nav import Costmap, NavigateToPose
 from rescuemesh.protocol import Endpoint, EndpointConfig, ReliabilityConfig
-from rescuemesh.radio import RangeLossChannel
+from rescuemesh.radio import make_channel
 from rescuemesh.robot import BrainConfig, RobotBrain, robot_address
 from rescuemesh.sim import World
-from rescuemesh.transport import SimRadioLink
+from rescuemesh.transport import SimMedium
+
+
+class RadioKind(Enum):
+    """The channel model a run uses (`--radio`)."""
+
+    BLE = "ble"  # path loss, walls, shadowing, fading on the map (docs/radio.md)
+    DISC = "disc"  # the paper's 10 m disc, no walls
 
 
 @dataclass(frozen=True)
 class SimConfig:
-    """How to run: timing in s, the radio channel, and the protocol's retry settings."""
+    """How to run: timing in s, the radio, the mesh, and the protocol's retry settings.
+
+    `loss`: extra independent per-reception loss on top of the channel. `relay`: every robot has
+    the relay feature (False: `--no-relay`). `radio_params`: channel settings overriding defaults.
+    """
 
     seed: int = 0
     physics_dt: float = 0.005
     control_dt: float = 0.05
     loss: float = 0.0
-    latency_s: float = 0.01
-    range_m: float = 10.0
+    radio: RadioKind = RadioKind.BLE
+    radio_params: dict = field(default_factory=dict)
+    relay: bool = True
     ack_timeout_s: float = 0.15
     max_sends: int = 3
     brain: BrainConfig = field(default_factory=BrainConfig)
+    mesh: MeshConfig = field(default_factory=lambda: MeshConfig(relay_retransmit_count=TEAM_RELAY_RETRANSMIT_COUNT))
 
     def __post_init__(self) -> None:
         ratio = self.control_dt / self.physics_dt
@@ -43,6 +59,8 @@ class SimConfig:
             raise ValueError(f"physics step must be in (0, 0.005] s, got {self.physics_dt}")
         if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
             raise ValueError(f"control step {self.control_dt} s is not a whole multiple of the physics step")
+        if self.brain.heartbeat_period_s != self.mesh.heartbeat_period_s:
+            raise ValueError("the brain's and the mesh layer's heartbeat periods differ")
 
 
 @dataclass(frozen=True, slots=True)
@@ -58,20 +76,25 @@ class SimRuntime:
     def __init__(self, map_model: MapModel, starts: dict[str, Pose2D], config: SimConfig | None = None) -> None:
         self.config = config or SimConfig()
         self.map = map_model
-        rng = np.random.default_rng(self.config.seed)
-        radio_rng, world_seed = rng.spawn(1)[0], int(rng.integers(2**31))
-        self.world = World(map_model, starts, physics_dt=self.config.physics_dt, seed=world_seed)
-        channel = RangeLossChannel(loss=self.config.loss, latency_s=self.config.latency_s, range_m=self.config.range_m)
-        self.link = SimRadioLink(channel, radio_rng, record=True)
-        reliability = ReliabilityConfig(ack_timeout_s=self.config.ack_timeout_s, max_sends=self.config.max_sends)
+        config = self.config
+        rng = np.random.default_rng(config.seed)
+        radio_seed, world_seed = int(rng.integers(2**63)), int(rng.integers(2**31))
+        self.world = World(map_model, starts, physics_dt=config.physics_dt, seed=world_seed)
+        self.channel = make_channel(config.radio.value, grid=map_model.grid, seed=radio_seed, **config.radio_params)
+        self.medium = SimMedium(self.channel, radio_seed, extra_loss=config.loss, record=True)
+        reliability = ReliabilityConfig(ack_timeout_s=config.ack_timeout_s, max_sends=config.max_sends)
+        mesh = replace(config.mesh, relay=config.relay)
         self.costmap = Costmap(map_model.grid)
         self.brains: dict[str, RobotBrain] = {}
+        self.stacks: dict[str, NetworkStack] = {}
         for name in starts:
             body = self.world.bodies[name]
-            endpoint = Endpoint(robot_address(name), EndpointConfig(reliability=reliability))
+            address = robot_address(name)
+            endpoint = Endpoint(address, EndpointConfig(reliability=reliability, initial_ttl=mesh.initial_ttl))
+            stack = self.stacks[name] = NetworkStack(endpoint, MeshNode(address, mesh))
             nav = NavigateToPose(self.costmap)
-            self.brains[name] = RobotBrain(name, body, endpoint, nav, self.costmap, self.config.brain)
-            self.link.attach(endpoint.address, endpoint, _position_of(body))
+            self.brains[name] = RobotBrain(name, body, stack, nav, self.costmap, config.brain)
+            self.medium.attach(address, stack, _position_of(body))
         self.time = 0.0
         self.ticks = 0
         self.trajectories: dict[str, list[TrajectorySample]] = {name: [] for name in starts}
@@ -83,18 +106,22 @@ class SimRuntime:
         except KeyError:
             raise ValueError(f"unknown robot {name!r}; this team has {', '.join(self.brains)}") from None
 
+    def set_radio(self, name: str, enabled: bool) -> None:
+        """Switch robot `name`'s radio off (it neither sends nor hears) or back on, now."""
+        self.medium.set_radio_enabled(robot_address(self.brain(name).name), enabled, self.time)
+
     def step(self, script: Callable[["SimRuntime"], None] | None = None) -> None:
         """One control step: physics, radio, brains, then `script` (a mission), then transmit."""
         self.ticks += 1
         now = round(self.ticks * self.config.control_dt, 9)  # no 0.30000000000000004 in the logs
         self.world.step_to(now)
         self.time = now
-        self.link.pump(now)
+        self.medium.pump(now)
         for brain in self.brains.values():
             brain.step(now)
         if script is not None:
             script(self)
-        self.link.flush(now)  # what the brains sent leaves now, not at the next tick
+        self.medium.flush(now)  # what the brains sent leaves now, not at the next tick
         self._record()
 
     def _record(self) -> None:

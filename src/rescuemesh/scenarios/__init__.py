@@ -4,11 +4,15 @@ Owns: the registry. Must not know: the command line, output files.
 """
 
 from rescuemesh.scenarios.base import Scenario, ScenarioError, ScenarioOptions, Verdict
+from rescuemesh.scenarios.disconnect import DisconnectScenario
 from rescuemesh.scenarios.follow import FollowScenario
 from rescuemesh.scenarios.move_around import MoveAroundScenario
+from rescuemesh.scenarios.relay import RelayScenario
 from rescuemesh.scenarios.stop import StopScenario
 
-SCENARIOS: dict[str, type[Scenario]] = {cls.name: cls for cls in (FollowScenario, StopScenario, MoveAroundScenario)}
+SCENARIOS: dict[str, type[Scenario]] = {
+    cls.name: cls for cls in (FollowScenario, StopScenario, MoveAroundScenario, RelayScenario, DisconnectScenario)
+}
 
 
 def get_scenario(name: str) -> type[Scenario]:

@@ -15,7 +15,7 @@ from rescuemesh.geometry import Pose2D
 from rescuemesh.maps import MapModel
 from rescuemesh.protocol import ResultCode
 from rescuemesh.robot import RobotBrain, robot_address
-from rescuemesh.runtime import SimRuntime, TrajectorySample
+from rescuemesh.runtime import RadioKind, SimConfig, SimRuntime, TrajectorySample
 
 ROBOTS = ("robot_1", "robot_2", "robot_3")
 #: Two TurtleBot 2 footprints (0.177 m radius each) plus a little room.
@@ -36,6 +36,9 @@ class ScenarioOptions:
     starts: dict[str, Pose2D] = field(default_factory=dict)
     goal: Pose2D | None = None
     time_limit_s: float | None = None
+    radio: RadioKind = RadioKind.BLE
+    relay: bool = True
+    outage_s: float | None = None  # disconnect: how long robot_1's radio is silent
 
 
 @dataclass
@@ -82,9 +85,14 @@ class Scenario(abc.ABC):
     summary: ClassVar[str]
     time_limit_s: ClassVar[float]
 
+    #: Whether --outage means anything to this scenario.
+    takes_outage: ClassVar[bool] = False
+
     def __init__(self, options: ScenarioOptions, map_model: MapModel) -> None:
         self.options = options
         self.map = map_model
+        if options.outage_s is not None and not self.takes_outage:
+            raise ScenarioError(f"--outage applies to the disconnect scenario, not to {self.name}")
         self.validate()
 
     @property
@@ -94,9 +102,18 @@ class Scenario(abc.ABC):
     def validate(self) -> None:
         """Raise ScenarioError for options this scenario cannot run with."""
 
+    def sim_config(self) -> SimConfig:
+        """How the runtime is set up for this scenario (a scenario may override parts)."""
+        o = self.options
+        return SimConfig(seed=o.seed, loss=o.loss, radio=o.radio, relay=o.relay)
+
+    def default_starts(self) -> dict[str, Pose2D]:
+        """Start poses before --start: the map's (a scenario may place its robots itself)."""
+        return dict(self.map.starts)
+
     def starts(self) -> dict[str, Pose2D]:
-        """Start poses: the map's defaults, overridden by --start."""
-        starts = {name: pose for name, pose in self.map.starts.items() if name in ROBOTS}
+        """Start poses: the defaults, overridden by --start."""
+        starts = {name: pose for name, pose in self.default_starts().items() if name in ROBOTS}
         for name in self.options.starts:
             robot_address(name)  # ValueError for a malformed robot name
             if name not in ROBOTS:

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from rescuemesh.maps import MapModel, load_map, office_map_path
 from rescuemesh.report import build_result, plot_timeline, plot_trajectories, write_result
-from rescuemesh.runtime import SimConfig, SimRuntime
+from rescuemesh.runtime import SimRuntime
 from rescuemesh.scenarios import ScenarioOptions, Verdict, get_scenario
 
 #: How often the progress callback is called, in simulated seconds.
@@ -34,7 +34,7 @@ def run_scenario(name: str, options: ScenarioOptions, *, map_path: Path | None =
     cls = get_scenario(name)
     map_model: MapModel = load_map(map_path or office_map_path())
     scenario = cls(options, map_model)
-    config = SimConfig(seed=options.seed, loss=options.loss)
+    config = scenario.sim_config()
     wall_start = time.perf_counter()
     rt = SimRuntime(map_model, scenario.starts(), config)
     next_report = 0.0
