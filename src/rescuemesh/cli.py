@@ -28,7 +28,7 @@ def _pose(text: str, *, with_yaw: bool) -> tuple[float, ...]:
     parts = text.split(",")
     want = 3 if with_yaw else 2
     if len(parts) not in ((2, 3) if with_yaw else (2,)):
-        raise UsageError(f"expected {'X,Y[,YAW]' if with_yaw else 'X,Y'} in metres (and rad), got {text!r}")
+        raise UsageError(f"expected {'X,Y[,YAW] in m and rad' if with_yaw else 'X,Y in m'}, got {text!r}")
     try:
         values = tuple(float(p) for p in parts)
     except ValueError:
@@ -202,7 +202,7 @@ class _Progress:
 def _radio_map(args) -> int:
     from rescuemesh.maps import MapError, load_map, office_map_path
     from rescuemesh.radio import make_channel
-    from rescuemesh.report.radio_map import Quantity, write_radio_map
+    from rescuemesh.report.radio_map import RadioMapQuantity, write_radio_map
 
     _check_seed(args.seed)
     x, y = _pose(args.origin, with_yaw=False)
@@ -211,7 +211,7 @@ def _radio_map(args) -> int:
         channel = make_channel(args.radio, grid=map_model.grid, seed=args.seed)
         out = _writable_folder(args.out)
         path = write_radio_map(map_model, channel, (x, y), out / "radio_map.png",
-                               quantity=Quantity.POWER if args.power else Quantity.DELIVERY)
+                               quantity=RadioMapQuantity.POWER if args.power else RadioMapQuantity.DELIVERY)
     except (MapError, ValueError) as error:
         raise UsageError(str(error)) from None
     print(f"radio map of a transmitter at ({x:g}, {y:g}) on {map_model.name} ({args.radio} model)")
