@@ -119,7 +119,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "ble-check":
             from rescuemesh.runtime.ble_check import main_ble_check
 
-            return main_ble_check(args.hci, sys.stdout)
+            return main_ble_check(args.hci, sys.stdout, err=sys.stderr)
         if args.command == "bench":
             from rescuemesh.bench import run_bench
 

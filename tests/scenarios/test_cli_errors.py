@@ -35,12 +35,23 @@ def broken_map(tmp_path):
     (["run", "follow", "--time-limit", "inf"], "--time-limit"),
     (["run", "follow", "--seed", "-1"], "--seed"),
     (["run", "follow", "--start", "robot_1=4.5,4.5,0", "--start", "robot_2=4.6,4.6,0"], "apart"),
+    (["run", "follow", "--outage", "3"], "--outage applies to the disconnect scenario"),
+    (["run", "disconnect", "--outage", "-3"], "--outage"),
+    (["run", "disconnect", "--outage", "nan"], "--outage"),
+    (["run", "disconnect", "--outage", "601"], "--outage"),
+    (["run", "follow", "--radio", "wifi"], "invalid choice"),
+    (["radio-map"], "--from"),
+    (["radio-map", "--from", "2.2,2.2"], "inside a wall"),
+    (["radio-map", "--from", "100,2"], "off the map"),
+    (["radio-map", "--from", "1,1", "--map", "/nonexistent/map.yaml"], "map.yaml"),
+    (["radio-map", "--from", "1,1", "--seed", "-2"], "--seed"),
+    (["ble-check", "--hci", "usb:0"], "--hci names 1 controller"),
     (["bench", "--seed", "-1"], "--seed"),
     (["fly"], "invalid choice"),
     ([], "required"),
 ])
 def test_bad_arguments_exit_2_with_one_line(argv, words, capsys, tmp_path):
-    code = main(argv + (["--out", str(tmp_path)] if argv[:1] == ["run"] else []))
+    code = main(argv + (["--out", str(tmp_path)] if argv[:1] in (["run"], ["radio-map"]) and len(argv) > 1 else []))
     err = capsys.readouterr().err.strip()
     assert code == 2
     assert len(err.splitlines()) == 1 and err.startswith("rescuemesh: error:")
@@ -81,3 +92,11 @@ def test_an_output_folder_that_cannot_be_written_is_refused_before_running(where
 def test_bench_refuses_a_folder_as_its_output_file(tmp_path, capsys):
     assert main(["bench", "--out", str(tmp_path)]) == 2
     assert "is a folder" in capsys.readouterr().err
+
+
+def test_relay_on_another_map_needs_every_start(tmp_path, capsys):
+    path = tmp_path / "plain.yaml"
+    path.write_text("name: plain\nwalls:\n  - [0, 0, 10, 0.1]\n  - [0, 9.9, 10, 10]\n  - [0, 0, 0.1, 10]\n"
+                    "  - [9.9, 0, 10, 10]\nstarts:\n  robot_1: [1, 1, 0]\n  robot_2: [2, 2, 0]\n  robot_3: [3, 3, 0]\n")
+    assert main(["run", "relay", "--map", str(path), "--out", str(tmp_path / "out")]) == 2
+    assert "relay needs --start for robot_1, robot_2 and robot_3" in capsys.readouterr().err

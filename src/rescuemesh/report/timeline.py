@@ -26,7 +26,7 @@ EVENT_MARKS = {
     "command_given_up": ("D", "command given up"),
     "follow_given_up": ("D", "command given up"),
     "behaviour_ended": ("|", "behaviour ended"),
-    "link_lost": ("v", "link lost (paused)"),
+    "link_lost": ("s", "link lost (paused)"),
     "link_resumed": ("^", "link resumed"),
 }
 #: Rows of the radio panel: message kinds, bottom to top.
@@ -42,7 +42,8 @@ def _kind(record) -> str:
     return _KIND_OF_TYPE.get(record.msg_type, "Command")
 
 
-def plot_timeline(rt, path: Path, *, title: str = "") -> Path:
+def plot_timeline(rt, path: Path, *, title: str = "", metrics: dict | None = None) -> Path:
+    """Draw the timeline; a metrics `outage_start_s`/`outage_end_s` pair is shaded as a radio outage."""
     names = list(rt.trajectories)
     fig, (ax_speed, ax_radio) = plt.subplots(2, 1, figsize=(11, 6.5), dpi=110, sharex=True,
                                              gridspec_kw={"height_ratios": [1.0, 1.3]})
@@ -59,6 +60,12 @@ def plot_timeline(rt, path: Path, *, title: str = "") -> Path:
             ax_speed.plot(event.time_s, speed, marker=marker, color=colour, ms=8, mec="k", mew=0.6, ls="none",
                           label=None if label in seen_labels else label, zorder=5)
             seen_labels.add(label)
+    metrics = metrics or {}
+    if metrics.get("outage_start_s") is not None:
+        end = metrics.get("outage_end_s") or rt.time
+        for ax in (ax_speed, ax_radio):
+            ax.axvspan(metrics["outage_start_s"], end, color="0.85", zorder=0,
+                       label="robot_1's radio off" if ax is ax_speed else None)
     ax_speed.set_ylabel("speed [m/s]")
     ax_speed.set_ylim(bottom=-0.02)
     ax_speed.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)

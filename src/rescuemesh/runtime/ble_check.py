@@ -605,25 +605,27 @@ def ble_check(hci: str | Sequence[str] | None = None, **options: Any) -> BleChec
 
 
 def main_ble_check(
-    hci_specs: Sequence[str] | None, out: TextIO, *, updates: int = 6, timeout_s: float = 30.0
+    hci_specs: Sequence[str] | None, out: TextIO, *, updates: int = 6, timeout_s: float = 30.0,
+    err: TextIO | None = None,
 ) -> int:
-    """`rescuemesh ble-check [--hci SPEC]...`: print the report; 0 when every command and PoseUpdate
-    was confirmed, 1 when not, 2 for bad input (wrong --hci count, a controller that cannot be
-    opened, bumble missing), with a one-line message."""
+    """`rescuemesh ble-check [--hci SPEC]...`: print the report to `out`; 0 when every command and
+    PoseUpdate was confirmed, 1 when not, 2 for bad input (wrong --hci count, a controller that
+    cannot be opened, bumble missing), with a one-line message on `err` (default: `out`)."""
+    err = err if err is not None else out
     try:
         from rescuemesh.transport.ble import BleSetupError
     except ImportError as exc:
-        print(f"ble-check: {exc}", file=out)
+        print(f"rescuemesh: error: ble-check needs the ble extra (pip install 'rescuemesh[ble]'): {exc}", file=err)
         return 2
     try:
         specs = check_hci_specs(list(hci_specs or []))
     except ValueError as exc:
-        print(f"ble-check: {exc}", file=out)
+        print(f"rescuemesh: error: {exc}", file=err)
         return 2
     try:
         report = ble_check([s for s in specs if s is not None], updates=updates, timeout_s=timeout_s)
     except BleSetupError as exc:
-        print(f"ble-check: {exc}", file=out)
+        print(f"rescuemesh: error: {exc}", file=err)
         return 2
     print(report.summary(), file=out)
     return 0 if report.passed else 1

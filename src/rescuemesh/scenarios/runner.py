@@ -60,7 +60,8 @@ def run_scenario(name: str, options: ScenarioOptions, *, map_path: Path | None =
         files.append(write_result(result, out_dir / "result.json"))
         files.append(plot_trajectories(rt, map_model, out_dir / "trajectory.png",
                                        title=_title(scenario, verdict), metrics=verdict.metrics))
-        files.append(plot_timeline(rt, out_dir / "timeline.png", title=_title(scenario, verdict)))
+        files.append(plot_timeline(rt, out_dir / "timeline.png", title=_title(scenario, verdict),
+                                   metrics=verdict.metrics))
     return RunOutcome(result, verdict, rt, files)
 
 
