@@ -148,6 +148,19 @@ class Scenario(abc.ABC):
         """Success criteria and the scenario's metrics."""
 
 
+#: A robot counts as settled once its speed stays below SETTLED_SPEED (m/s) for SETTLE_S seconds.
+SETTLED_SPEED = 0.03
+SETTLE_S = 1.5
+
+
+def settled(rt: SimRuntime, name: str, since_s: float) -> bool:
+    """Whether robot `name` has been still for SETTLE_S s, counted from `since_s` at the earliest."""
+    now = rt.time
+    if now - since_s < SETTLE_S:
+        return False
+    return all(s.speed < SETTLED_SPEED for s in rt.trajectories[name] if s.time_s >= now - SETTLE_S)
+
+
 def no_collisions(rt: SimRuntime) -> tuple[str, bool]:
     total = sum(rt.world.collisions.values())
     return (f"no collision ({total} seen)", total == 0)

@@ -9,13 +9,11 @@ from __future__ import annotations
 from rescuemesh.geometry import Pose2D
 from rescuemesh.protocol import ResultCode
 from rescuemesh.runtime import SimRuntime
-from rescuemesh.scenarios.base import CommandRequest, Scenario, ScenarioError, Verdict, mean_distance, no_collisions
+from rescuemesh.scenarios.base import (CommandRequest, Scenario, ScenarioError, Verdict, mean_distance, no_collisions,
+                                       settled)
 
 #: On a map with no named regions, follow succeeds when the follower ends this close to the leader (m).
 FOLLOWER_END_DISTANCE_M = 2.0
-#: The follower counts as settled once its speed stays below this (m/s) for SETTLE_S seconds.
-SETTLED_SPEED = 0.03
-SETTLE_S = 1.5
 
 
 class FollowScenario(Scenario):
@@ -57,10 +55,8 @@ class FollowScenario(Scenario):
         if self.arrived_s is None and leader.running is None:
             self.arrived_s = now
             self._leader_result = _last_result(leader, "navigate")
-        if self.arrived_s is not None and self.settled_s is None:
-            recent = [s for s in rt.trajectories[self.follower] if s.time_s >= now - SETTLE_S]
-            if now - self.arrived_s >= SETTLE_S and all(s.speed < SETTLED_SPEED for s in recent):
-                self.settled_s = now
+        if self.arrived_s is not None and self.settled_s is None and settled(rt, self.follower, self.arrived_s):
+            self.settled_s = now
 
     def finished(self, rt: SimRuntime) -> bool:
         return self.settled_s is not None or (self._request is not None and self._request.given_up)

@@ -11,7 +11,7 @@ from __future__ import annotations
 from rescuemesh.geometry import Pose2D
 from rescuemesh.protocol import ResultCode
 from rescuemesh.runtime import SimRuntime
-from rescuemesh.scenarios.base import CommandRequest, Scenario, ScenarioError, Verdict, no_collisions
+from rescuemesh.scenarios.base import CommandRequest, Scenario, ScenarioError, Verdict, no_collisions, settled
 
 #: Office placements: robot_1 in the north-west of the hall and robot_3 in the far corner of
 #: room_northeast hear each other with probability < 0.1 % (17.6 m, two walls); robot_2 in
@@ -27,7 +27,6 @@ LEG_START_DISTANCE_M = 3.0
 LEG_GOAL = Pose2D(3.0, 4.6, 0.0)  # in the hall, 4 m from robot_1's start
 END_DISTANCE_M = 2.0
 MIN_HOPS = 2
-SETTLED_SPEED, SETTLE_S = 0.03, 1.5
 
 
 class RelayScenario(Scenario):
@@ -69,10 +68,8 @@ class RelayScenario(Scenario):
             return
         if self.arrived_s is None and leader.running is None:
             self.arrived_s = now
-        if self.arrived_s is not None and self.settled_s is None and now - self.arrived_s >= SETTLE_S:
-            recent = [s for s in rt.trajectories[self.follower] if s.time_s >= now - SETTLE_S]
-            if all(s.speed < SETTLED_SPEED for s in recent):
-                self.settled_s = now
+        if self.arrived_s is not None and self.settled_s is None and settled(rt, self.follower, self.arrived_s):
+            self.settled_s = now
 
     def finished(self, rt: SimRuntime) -> bool:
         return self.settled_s is not None or (self._request is not None and self._request.given_up)
