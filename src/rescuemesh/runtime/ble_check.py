@@ -91,7 +91,9 @@ class FrameSink(Protocol):
 
 def default_stack(address: int) -> FrameStack:
     """A robot's network stack as in the simulation (endpoint with the BLE ack timeout, on a mesh
-    node that relays): the stack the check uses unless told otherwise."""
+    node that relays): the stack the check uses unless told otherwise. No relay retransmit: the
+    bearer already keeps every frame on the air for three advertising events, which is what a
+    Bluetooth Mesh stack's network and relay retransmissions amount to; more would queue."""
     endpoint = Endpoint(address, EndpointConfig(reliability=ReliabilityConfig(ack_timeout_s=BLE_ACK_TIMEOUT_S)))
     return NetworkStack(endpoint, MeshNode(address, MeshConfig()))
 
