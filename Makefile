@@ -4,7 +4,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 
-.PHONY: demo test bench clean
+.PHONY: demo test bench fuzz clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -20,6 +20,9 @@ test: $(VENV)/.installed
 
 bench: $(VENV)/.installed
 	$(BIN)/rescuemesh bench --out out/bench.json
+
+fuzz: $(VENV)/.installed
+	$(BIN)/python -m rescuemesh.mesh.fuzz --frames 1000000
 
 clean:
 	rm -rf $(VENV) out .pytest_cache
