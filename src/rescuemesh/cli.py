@@ -90,8 +90,16 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--no-relay", action="store_true", help="no robot relays frames (single-hop radio)")
     run.add_argument("--outage", type=float, default=None, metavar="S",
                      help="disconnect: seconds robot_1's radio stays silent (default 3)")
+    run.add_argument("--key", type=Path, default=None, metavar="FILE",
+                     help="team key file (rescuemesh keys new FILE); default: a key derived from the seed")
+    run.add_argument("--insecure", action="store_true",
+                     help="CRC-32 frames, no authentication or encryption (anyone on the radio can command)")
     run.add_argument("--quiet", action="store_true", help="no progress display")
     sub.add_parser("scenarios", help="list the scenarios")
+    keys = sub.add_parser("keys", help="team keys")
+    keys_sub = keys.add_subparsers(dest="keys_command", required=True, parser_class=_Parser)
+    keys_new = keys_sub.add_parser("new", help="write a new random 128-bit team key to FILE (mode 600)")
+    keys_new.add_argument("file", type=Path)
     radio_map = sub.add_parser("radio-map", help="draw where a transmitter is heard (radio_map.png)")
     radio_map.add_argument("--from", dest="origin", required=True, metavar="X,Y", help="transmitter position in m")
     radio_map.add_argument("--map", type=Path, default=None, help="map file (default: the office)")
@@ -116,6 +124,8 @@ def main(argv: list[str] | None = None) -> int:
             return _list_scenarios()
         if args.command == "radio-map":
             return _radio_map(args)
+        if args.command == "keys":
+            return _keys_new(args.file)
         if args.command == "ble-check":
             from rescuemesh.runtime.ble_check import main_ble_check
 
@@ -160,9 +170,11 @@ def _run(args) -> int:
         raise UsageError(f"--outage must be a finite number of seconds > 0, got {args.outage}")
     _check_seed(args.seed)
     goal = Pose2D(*_pose(args.goal, with_yaw=False)) if args.goal else None
+    key, key_source = _team_key(args)
     options = ScenarioOptions(seed=args.seed, loss=args.loss, radius_m=args.radius, starts=_starts(args.start),
                               goal=goal, time_limit_s=args.time_limit, radio=RadioKind(args.radio),
-                              relay=not args.no_relay, outage_s=args.outage)
+                              relay=not args.no_relay, outage_s=args.outage, secure=not args.insecure,
+                              team_key=key, key_source=key_source)
     out = _writable_folder(args.out or Path("out") / args.scenario)
     progress = None if args.quiet else _Progress(args.scenario)
     try:
@@ -199,6 +211,33 @@ class _Progress:
             sys.stderr.write("\r" + " " * 70 + "\r")
 
 
+def _team_key(args) -> tuple[bytes | None, str]:
+    if args.insecure and args.key is not None:
+        raise UsageError("--key and --insecure contradict each other: an insecure run uses no key")
+    if args.insecure:
+        return None, "none (--insecure)"
+    if args.key is None:
+        return None, "derived from the seed (simulation only)"
+    from rescuemesh.mesh.keys import KeyFileError, load_team_key
+
+    try:
+        return load_team_key(args.key), f"from {args.key}"
+    except KeyFileError as error:
+        raise UsageError(str(error)) from None
+
+
+def _keys_new(path: Path) -> int:
+    from rescuemesh.mesh.keys import KeyFileError, write_team_key
+
+    try:
+        write_team_key(path)
+    except KeyFileError as error:
+        raise UsageError(str(error)) from None
+    print(f"wrote a new 128-bit team key to {path} (mode 600): give it to every robot of the team, "
+          f"and use it with --key {path}")
+    return EXIT_OK
+
+
 def _radio_map(args) -> int:
     from rescuemesh.maps import MapError, load_map, office_map_path
     from rescuemesh.radio import make_channel
@@ -223,6 +262,7 @@ def _summary(outcome) -> None:
     r = outcome.result
     p, n = r["protocol"], r["network"]
     radio = r["settings"]["radio"] + ("" if r["settings"]["relay"] else ", no relay")
+    radio += ", authenticated" if r["settings"]["security"]["authenticated"] else ", INSECURE: CRC frames, no authentication"
     print(f"{r['scenario']}: {'SUCCESS' if r['success'] else 'FAILED'}  (seed {r['seed']}, radio {radio}, "
           f"loss {r['settings']['loss']:g}, {r['sim_time_s']:.1f} s simulated in {r['wall_time_s']:.1f} s, "
           f"{r['real_time_factor']}x real time)")

@@ -5,8 +5,9 @@ import pytest
 from team import Team
 
 from rescuemesh.geometry import Pose2D
-from rescuemesh.protocol import (Confirm, Data, DataKind, Endpoint, ForwardMsg, Goto, LandOnTop, MoveAround, Pose,
-                                 Reason, ResultCode, Return, ShowCam, ShowScan, Stop, encode_inner)
+from rescuemesh.protocol import (Confirm, ConfirmReceived, Data, DataKind, Endpoint, ForwardMsg, Goto, LandOnTop,
+                                 MessageType, MoveAround, Pose, Reason, ResultCode, Return, ShowCam, ShowScan, Stop,
+                                 encode_inner)
 from rescuemesh.protocol.codec import decode_frame
 
 ONE, TWO = 1, 2
@@ -117,12 +118,28 @@ def test_stop_preempts_follow_and_reports_cancelled_to_the_commander():
 
 
 def test_pose_update_from_a_robot_we_do_not_follow_is_denied():
+    # this used to assert only that a seq came back, so it passed whatever robot_2 answered
     team = two_robots()
-    seq = team.brains["robot_1"].endpoint.send_pose_update(TWO, Pose(2, 2, 0, 0), 0.0)
+    leader, follower = team.brains["robot_1"], team.brains["robot_2"]
+    heard = []  # the leader endpoint's events, on their way to its brain (which keeps no record of them)
+    pull = leader.endpoint.next_event
+
+    def next_event():
+        event = pull()
+        if event is not None:
+            heard.append(event)
+        return event
+
+    leader.endpoint.next_event = next_event
+    seq = leader.endpoint.send_pose_update(TWO, Pose(2, 2, 0, 0), 0.0)
     team.run(0.5)
-    assert team.brains["robot_2"].behaviour == "idle"
-    assert team.brains["robot_1"].endpoint.stats.confirms_received == 1
-    assert seq is not None
+    answers = [(e.src, e.ref_seq, e.ref_type, e.result, e.reason) for e in heard if isinstance(e, ConfirmReceived)]
+    assert answers == [(TWO, seq, MessageType.POSE_UPDATE, ResultCode.DENIED, Reason.NOT_FOLLOWING)]
+    # and nothing starts, on either side
+    assert follower.behaviour == "idle" and follower.running is None
+    assert "behaviour_started" not in team.kinds("robot_2")
+    assert team.bodies["robot_2"].pose() == Pose2D(1.5, 6.0) and team.bodies["robot_2"].command == (0.0, 0.0)
+    assert TWO not in leader.streams
 
 
 def test_move_around_inside_a_wall_is_denied():

@@ -160,3 +160,28 @@ def test_a_hopeless_link_ends_the_stop_scenario_early_as_a_failure(tmp_path):
     assert code == 1 and result["success"] is False
     assert result["sim_time_s"] < 10 and result["metrics"]["stop_latency_s"] is None
     assert result["protocol"]["commands_failed"] >= 3
+
+
+def test_spoof_the_follow_completes_and_nothing_from_the_intruder_is_accepted(tmp_path):
+    code, result = run(tmp_path, "spoof")
+    assert_common(result, code)
+    s = result["metrics"]["security"]
+    assert s["authenticated"] and s["accepted_from_intruder"] == 0 and s["double_executions"] == 0
+    assert s["forged_injected"] > 50 and s["replayed"] > 500  # the attack really ran, for 65 s
+    assert s["forged_rejected"] > 0 and s["replays_rejected"] > 0 and s["forged_commands_obeyed"] == {}
+    assert result["sim_time_s"] >= 62.0 and result["settings"]["security"]["authenticated"] is True
+
+
+def test_spoof_insecure_fails_because_robot_2_obeys_the_forged_stop(tmp_path):
+    code, result = run(tmp_path, "spoof", "--insecure")
+    assert code == 1 and result["success"] is False
+    s = result["metrics"]["security"]
+    assert s["forged_commands_obeyed"].get("Stop", 0) >= 1 and s["accepted_from_intruder"] > 0
+    assert "INSECURE" in result["settings"]["security"]["frames"]
+
+
+def test_a_run_with_a_key_file_is_authenticated_with_that_key(tmp_path):
+    assert main(["keys", "new", str(tmp_path / "team.key")]) == 0
+    code, result = run(tmp_path / "out", "stop", "--key", str(tmp_path / "team.key"))
+    assert_common(result, code)
+    assert result["settings"]["security"]["team_key"] == f"from {tmp_path / 'team.key'}"

@@ -9,6 +9,7 @@ from .events import (
     MeshEvent,
     NeighbourFound,
     NeighbourLost,
+    PeerRestarted,
     TransferComplete,
     TransferFailed,
 )
@@ -27,6 +28,7 @@ __all__ = [
     "NeighbourInfo",
     "NeighbourLost",
     "NetworkStack",
+    "PeerRestarted",
     "TEAM_RELAY_RETRANSMIT_COUNT",
     "TransferComplete",
     "TransferFailed",

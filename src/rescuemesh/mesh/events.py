@@ -66,3 +66,13 @@ class TransferFailed(MeshEvent):
     acked: int
     total: int
     now: float
+
+
+@dataclass(frozen=True, slots=True)
+class PeerRestarted(MeshEvent):
+    """`address` is in a newer `epoch` (it rebooted, or its sequence wrapped): its old sequence
+    numbers mean nothing now (the stack tells the endpoint to forget them)."""
+
+    address: int
+    epoch: int
+    now: float

@@ -24,7 +24,15 @@ the relay decision and the outbox; must not know radios, clocks, random numbers 
 #      TTL < 2 -> dropped_ttl.
 #
 # A relay reads the header only (and, for metadata, a segment's SegO/SegN): it never decodes a
-# payload, so it relays message types it does not know. The caller draws relay_delay_s (Bluetooth
+# payload, so it relays message types it does not know.
+#
+# With a frame sealer (authenticated frames, docs/protocol.md section 12), step 1 opens the frame
+# first: a frame without the AUTH flag, from a source whose epoch is unknown (no Heartbeat heard
+# yet), or whose MIC does not verify is dropped (dropped_unauthenticated, dropped_unknown_epoch,
+# dropped_forged) and goes no further, not even to a relay; after the cache, the replay window
+# (replay.py) drops a frame already accepted or too old (dropped_replay). A frame that opens under
+# a newer epoch of its source emits PeerRestarted. What we send is sealed under our endpoint's
+# epoch; what we relay is re-sealed with TTL - 1 under its source's epoch. The caller draws relay_delay_s (Bluetooth
 # Mesh relays wait a random 0..~20 ms so that neighbours that heard the same frame do not all
 # transmit at once) from its own seeded generator; the node draws no random numbers.
 
@@ -38,6 +46,8 @@ from dataclasses import dataclass
 
 from rescuemesh.protocol import (
     BROADCAST,
+    FRAME_OVERHEAD_BYTES,
+    MAX_EPOCH,
     MAX_CONTROL_FRAME_BYTES,
     MAX_SEQ,
     MAX_TTL,
@@ -55,15 +65,19 @@ from rescuemesh.protocol import (
 
 from .cache import NetworkCache
 from .config import MeshConfig
-from .events import FrameDelivered, MeshEvent
+from .events import FrameDelivered, MeshEvent, PeerRestarted
 from .frames import FrameKind, FrameView, cache_key, read_logical, read_on_air, with_ttl
 from .neighbours import NeighbourInfo, NeighbourTable
 from .reassembly import SarReceiver
+from .replay import ReplayVerdict, ReplayWindow
 from .sar import SarSender
 from .segments import read_segment_header
 from .stats import MeshStats
 
-_HEARTBEAT_BYTES = 12  # 6 header + active_command + init_ttl + 4 CRC (docs/protocol.md)
+#: Segmented frames whose epoch the node remembers (a transfer is numbered in one epoch).
+_MAX_TX_EPOCHS = 64
+AUTH_BIT = 0x20  # byte 0, bit 5 (docs/protocol.md section 2)
+_HEARTBEAT_BYTES = 16  # 6 header + active_command + init_ttl + epoch (4) + 4 CRC (docs/protocol.md)
 _HEARTBEAT_INIT_TTL_BYTE = 7
 #: FrameError subclass -> the counter it increments (any other: dropped_malformed).
 _DROP_COUNTER: dict[type, str] = {IntegrityError: "dropped_corrupt"}
@@ -96,11 +110,20 @@ class MeshNode:
     - next_event() until None: FrameDelivered goes to Endpoint.receive(data, now, hops).
     """
 
-    def __init__(self, address: int, config: MeshConfig | None = None) -> None:
+    def __init__(self, address: int, config: MeshConfig | None = None, sealer=None) -> None:
+        """`sealer`: a rescuemesh.mesh.security.FrameSealer for authenticated frames, None for the
+        CRC frames of an insecure team."""
         if not (isinstance(address, int) and 0 <= address <= MAX_UNICAST_ADDRESS):
             raise ValueError(f"address must be 0..{MAX_UNICAST_ADDRESS}, got {address!r}")
         self.address = address
         self.config = config if config is not None else MeshConfig()
+        self.sealer = sealer
+        self._replay = ReplayWindow() if sealer is not None else None
+        self._tx_epoch: dict[tuple[int, int], int] = {}  # (dst, seq) of segmented frames -> epoch
+        self._rx_epoch = 0  # epoch the frame being handled opened under
+        #: Numbers for frames the node originates (SegmentAcks): the endpoint's counter, so that
+        #: one robot has one sequence. NetworkStack sets it; (seq, epoch) per call.
+        self.number = self._own_number
         self.stats = MeshStats()
         self._cache = NetworkCache(self.config.cache_size, self.config.cache_lifetime_s)
         self._neighbours = NeighbourTable(self.config)
@@ -123,7 +146,7 @@ class MeshNode:
 
     # --- from the endpoint -----------------------------------------------------------------------
 
-    def send(self, frame: bytes, now: float) -> None:
+    def send(self, frame: bytes, now: float, epoch: int = 0) -> None:
         """Queue a logical frame our endpoint encoded: as it is up to 20 bytes, otherwise as segment
         frames paced by the timer. Raises ValueError for bytes that are not a valid frame (length
         10..8192, version, CRC, no SEG/AUTH flag), a frame from another source, or a segmented one
@@ -137,12 +160,15 @@ class MeshNode:
         frame = bytes(frame)
         if len(frame) <= MAX_CONTROL_FRAME_BYTES:
             self.stats.sent += 1
-            self._push(now, Transmission(frame, view.src, view.dst, view.msg_type, view.seq,
+            self._push(now, Transmission(self._seal(frame, epoch), view.src, view.dst, view.msg_type, view.seq,
                                          view.ttl, False, None, None))
         elif view.dst == BROADCAST:
             raise ValueError("a frame longer than 20 bytes is segmented and needs a unicast destination")
         else:
             self.stats.sent += 1
+            self._tx_epoch[(view.dst, view.seq)] = epoch
+            while len(self._tx_epoch) > _MAX_TX_EPOCHS:
+                del self._tx_epoch[next(iter(self._tx_epoch))]
             self._sender.start(view, frame, now)
 
     # --- from the radio --------------------------------------------------------------------------
@@ -157,6 +183,10 @@ class MeshNode:
         stats = self.stats
         stats.received += 1
         data = bytes(data)
+        if self.sealer is not None:
+            data = self._open(data)
+            if data is None:
+                return
         try:
             view = read_on_air(data)
         except FrameError as exc:
@@ -166,9 +196,21 @@ class MeshNode:
         if view.src == self.address:
             stats.dropped_own += 1
             return
-        if not self._cache.check_and_add(cache_key(data), now):
+        key = cache_key(data)
+        if self.sealer is not None:  # a rebooted source's frame may repeat an old one but for its epoch
+            key = self._rx_epoch.to_bytes(4, "big") + key
+        if not self._cache.check_and_add(key, now):
             stats.dropped_cached += 1
             return
+        if self._replay is not None:
+            send = None if view.kind is FrameKind.SEGMENT else data[1] >> 6
+            verdict = self._replay.accept(view.src, self._rx_epoch, view.seq, send)
+            if not verdict.accepted:
+                stats.dropped_replay += 1
+                return
+            if verdict is ReplayVerdict.NEW_EPOCH:
+                self._events.append(PeerRestarted(view.src, self._rx_epoch, now))
+        stats.accepted += 1
         hops, found = self._neighbours.heard(view.src, view.ttl, now, rssi_dbm, _announced_init_ttl(data, view))
         if found is not None:
             self._events.append(found)
@@ -242,8 +284,8 @@ class MeshNode:
             segments = last + 1
         ttl = view.ttl - 1
         self.stats.relayed += 1
-        relayed = Transmission(with_ttl(data, ttl), view.src, view.dst, view.msg_type, view.seq, ttl, True,
-                               segment, segments)
+        relayed = Transmission(self._seal(with_ttl(data, ttl), self._rx_epoch), view.src, view.dst, view.msg_type,
+                               view.seq, ttl, True, segment, segments)
         interval = self.config.relay_retransmit_interval_s
         for k in range(1 + self.config.relay_retransmit_count):  # Mesh Profile 4.2.20: Relay Retransmit
             self._push(due + k * interval, relayed)
@@ -264,18 +306,58 @@ class MeshNode:
 
     def _queue_segment(self, view: FrameView, data: bytes, index: int, total: int, round_: int,
                        now: float) -> None:
-        self._push(now, Transmission(data, view.src, view.dst, view.msg_type, view.seq, view.ttl,
-                                     False, index, total))
+        epoch = self._tx_epoch.get((view.dst, view.seq), 0)
+        self._push(now, Transmission(self._seal(data, epoch), view.src, view.dst, view.msg_type, view.seq,
+                                     view.ttl, False, index, total))
 
     def _send_ack(self, dst: int, ref_seq: int, base: int, bitmap: int, now: float) -> None:
         ttl = self.config.initial_ttl
-        header = Header(PROTOCOL_VERSION, FrameFlags.NONE, ttl, 0, MessageType.SEGMENT_ACK,
-                        self.address, dst, self._ack_seq)
+        seq, epoch = self.number()
+        header = Header(PROTOCOL_VERSION, FrameFlags.NONE, ttl, 0, MessageType.SEGMENT_ACK, self.address, dst, seq)
         data = encode_frame(header, SegmentAck(ref_seq, base, bitmap))
-        self._push(now, Transmission(data, self.address, dst, MessageType.SEGMENT_ACK, self._ack_seq,
+        self._push(now, Transmission(self._seal(data, epoch), self.address, dst, MessageType.SEGMENT_ACK, seq,
                                      ttl, False, None, None))
-        self._ack_seq = (self._ack_seq + 1) & MAX_SEQ
         self.stats.acks_sent += 1
+
+    def _own_number(self) -> tuple[int, int]:
+        """(seq, epoch) for a SegmentAck when no endpoint lends its counter (a bare node in tests)."""
+        seq = self._ack_seq
+        self._ack_seq = (self._ack_seq + 1) & MAX_SEQ
+        return seq, 0
+
+    # --- authenticated frames ----------------------------------------------------------------------
+
+    def _seal(self, frame: bytes, epoch: int) -> bytes:
+        return frame if self.sealer is None else self.sealer.seal(frame, epoch)
+
+    def _open(self, data: bytes) -> bytes | None:
+        """The CRC frame inside an authenticated one, or None (counted) if it does not open."""
+        stats = self.stats
+        if len(data) < FRAME_OVERHEAD_BYTES or not data[0] & AUTH_BIT:
+            stats.dropped_unauthenticated += 1
+            return None
+        src = data[2]
+        if src == self.address:
+            stats.dropped_own += 1
+            return None
+        announced = self.sealer.heartbeat_epoch(data)
+        if announced is not None:
+            candidates = (announced,)
+        else:
+            known = self._replay.epoch_of(src)
+            if known is None:
+                stats.dropped_unknown_epoch += 1
+                return None
+            candidates = (known, (known + 1) & MAX_EPOCH)  # the source may have wrapped since
+        for epoch in candidates:
+            try:
+                opened = self.sealer.open(data, epoch)
+            except FrameError:
+                continue
+            self._rx_epoch = epoch
+            return opened
+        stats.dropped_forged += 1
+        return None
 
 
 def _announced_init_ttl(data: bytes, view: FrameView) -> int | None:

@@ -9,7 +9,15 @@ from collections import Counter, deque
 
 from rescuemesh.protocol import Endpoint
 
-from .events import FrameDelivered, MeshEvent, NeighbourFound, NeighbourLost, TransferComplete, TransferFailed
+from .events import (
+    FrameDelivered,
+    MeshEvent,
+    NeighbourFound,
+    NeighbourLost,
+    PeerRestarted,
+    TransferComplete,
+    TransferFailed,
+)
 from .node import MeshNode, Transmission
 
 
@@ -27,7 +35,9 @@ class NetworkStack:
         self.hops_histogram: Counter[int] = Counter()  # frames delivered to us, by hops crossed
         self._events: deque[MeshEvent] = deque()
         self._path_hops: dict[int, int] = {}
+        node.number = self._number  # one sequence per robot: the node's SegmentAcks use the endpoint's
         self._on_event = {
+            PeerRestarted: self._restarted,
             FrameDelivered: self._deliver,
             NeighbourFound: self._found,
             NeighbourLost: self._events.append,
@@ -48,8 +58,8 @@ class NetworkStack:
 
     def transmissions(self, now: float) -> list[Transmission]:
         """What to put on the air now: the endpoint's new frames (segmented as needed), relays."""
-        for frame in self.endpoint.frames_to_send(now):
-            self.node.send(frame, now)
+        for frame, epoch in self.endpoint.drain(now):
+            self.node.send(frame, now, epoch)
         return self.node.transmissions(now)
 
     def frames_to_send(self, now: float) -> list[bytes]:
@@ -91,6 +101,14 @@ class NetworkStack:
         self.hops_histogram[event.hops] += 1
         self._note_hops(event.src, event.hops)
         self.endpoint.receive(event.data, event.now, event.hops)
+
+    def _number(self) -> tuple[int, int]:
+        seq = self.endpoint.allocate_seq()
+        return seq, self.endpoint.epoch
+
+    def _restarted(self, event: PeerRestarted) -> None:
+        self.endpoint.forget_peer(event.address)
+        self._events.append(event)
 
     def _found(self, event: NeighbourFound) -> None:
         self._note_hops(event.address, event.hops)

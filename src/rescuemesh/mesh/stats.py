@@ -12,6 +12,7 @@ class MeshStats:
     """What a node saw and did. Frames counted here are on-air frames unless "logical" is said."""
 
     received: int = 0  # receive() calls
+    accepted: int = 0  # frames heard that passed every check (authentic, new) and were used
     delivered: int = 0  # FrameDelivered events (logical frames, reassembled ones included)
     relayed: int = 0  # frames queued for re-broadcast
     sent: int = 0  # logical frames accepted by send()
@@ -21,6 +22,10 @@ class MeshStats:
     dropped_own: int = 0  # our own frame heard back
     dropped_ttl: int = 0  # not for us, TTL < 2: not relayed
     dropped_corrupt: int = 0  # CRC mismatch
+    dropped_unauthenticated: int = 0  # no AUTH flag in a team that authenticates
+    dropped_unknown_epoch: int = 0  # from a source whose epoch is not known yet (no Heartbeat heard)
+    dropped_forged: int = 0  # MIC did not verify (no key, wrong key, altered)
+    dropped_replay: int = 0  # authentic but already accepted, too old, or from an old epoch
     dropped_malformed: int = 0  # any other bad frame or segment (length, version, AUTH, SegO/SegN)
     segments_sent: int = 0  # segment frames released, retransmissions included
     segments_retransmitted: int = 0  # of those, released in a round > 0

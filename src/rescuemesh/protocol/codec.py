@@ -31,6 +31,7 @@ from .wire import (  # noqa: F401  (field pairs and constants re-exported: codec
     MAX_CONTROL_FRAME_BYTES,
     MAX_FORWARD_INNER_BYTES,
     MAX_FORWARD_MESSAGE_BYTES,
+    MAX_EPOCH,
     MAX_MESSAGE_BYTES,
     MAX_SEQ,
     MAX_TTL,

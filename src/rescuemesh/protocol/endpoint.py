@@ -5,7 +5,7 @@ entry point takes `now` in s, and the caller moves the bytes (docs/design.md, do
 
 from __future__ import annotations
 
-from collections import deque
+from collections import OrderedDict, deque
 from dataclasses import asdict, dataclass, field, replace
 
 from .codec import (
@@ -13,6 +13,7 @@ from .codec import (
     DEFAULT_TTL,
     MAX_ATTEMPT,
     MAX_CONTROL_FRAME_BYTES,
+    MAX_EPOCH,
     MAX_SEQ,
     MAX_TTL,
     MAX_UNICAST_ADDRESS,
@@ -53,6 +54,12 @@ from .messages import (
 from .reliability import DuplicateCache, ReliabilityConfig, RetransmissionQueue, TimeoutAction, Verdict
 
 
+#: Results after which a command's final report is still to come.
+_INTERIM = frozenset({ResultCode.ACCEPTED, ResultCode.IN_PROGRESS})
+#: Commands awaiting a final report, at most (the oldest are forgotten first).
+MAX_OPEN_COMMANDS = 256
+
+
 @dataclass(frozen=True, slots=True)
 class EndpointConfig:
     """reliability: retry and duplicate rules. initial_ttl: TTL of every frame we originate, in hops
@@ -62,12 +69,15 @@ class EndpointConfig:
     reliability: ReliabilityConfig = field(default_factory=ReliabilityConfig)
     initial_ttl: int = DEFAULT_TTL
     initial_seq: int = 0
+    initial_epoch: int = 0
 
     def __post_init__(self) -> None:
         if not (isinstance(self.initial_ttl, int) and 0 <= self.initial_ttl <= MAX_TTL):
             raise ValueError(f"initial_ttl must be 0..{MAX_TTL}, got {self.initial_ttl!r}")
         if not (isinstance(self.initial_seq, int) and 0 <= self.initial_seq <= MAX_SEQ):
             raise ValueError(f"initial_seq must be 0..{MAX_SEQ}, got {self.initial_seq!r}")
+        if not (isinstance(self.initial_epoch, int) and 0 <= self.initial_epoch <= MAX_EPOCH):
+            raise ValueError(f"initial_epoch must be 0..{MAX_EPOCH}, got {self.initial_epoch!r}")
 
 
 @dataclass(slots=True)
@@ -88,6 +98,8 @@ class EndpointStats:
     frames_rejected: int = 0
     frames_not_for_us: int = 0
     frames_received: int = 0
+    confirms_unmatched: int = 0  # Confirms answering nothing we sent or still await: dropped
+    epochs: int = 0  # sequence wraps (each starts a new epoch)
 
     def as_dict(self) -> dict[str, int]:
         return asdict(self)
@@ -110,7 +122,11 @@ class Endpoint:
         self.config = config if config is not None else EndpointConfig()
         self.stats = EndpointStats()
         self._seq = self.config.initial_seq
-        self._outbox: list[bytes] = []
+        #: This endpoint's epoch (docs/protocol.md section 12): persisted boot counter + seq wraps.
+        self.epoch = self.config.initial_epoch
+        self._numbered = False  # no number handed out yet (seq 0 then opens no new epoch)
+        self._outbox: list[tuple[bytes, int]] = []  # (frame, epoch it was numbered in)
+        self._open: OrderedDict[tuple[int, int], MessageType] = OrderedDict()  # awaiting a final report
         self._events: deque[Event] = deque()
         self._pending = RetransmissionQueue(self.config.reliability)
         self._seen = DuplicateCache(self.config.reliability)
@@ -164,9 +180,20 @@ class Endpoint:
     def send_heartbeat(self, now: float, active_command: int = 0) -> None:
         """Queue a broadcast Heartbeat (not confirmed, not retried). `active_command`: a command's
         MessageType value, 0 when idle."""
-        message = Heartbeat(active_command, self.config.initial_ttl)
-        self._outbox.append(self._encode(BROADCAST, self._seq, message))
-        self._seq = (self._seq + 1) & MAX_SEQ
+        seq = self.allocate_seq()
+        self._queue(self._encode(BROADCAST, seq, Heartbeat(active_command, self.config.initial_ttl, self.epoch)))
+
+    def allocate_seq(self) -> int:
+        """The next sequence number of this endpoint, for any frame it originates (the mesh layer's
+        SegmentAcks too: one counter per robot, so replay protection sees one sequence). At the
+        wrap 65535 -> 0 a new epoch starts and every frame still awaiting its Confirm is given up
+        (DeliveryFailed): its resends would reuse an old number in the new epoch."""
+        seq = self._seq
+        if seq == 0 and self._numbered:  # the counter came round: number 0 opens a new epoch
+            self._new_epoch()
+        self._numbered = True
+        self._seq = (seq + 1) & MAX_SEQ
+        return seq
 
     def confirm(
         self,
@@ -186,15 +213,22 @@ class Endpoint:
         after a final result) or a ref_type that does not match the frame, EncodeError for bad values.
         """
         self._check_unicast(dst)
-        frame = self._encode(dst, self._seq, Confirm(ref_seq, ref_type, result, progress, reason))
+        message = Confirm(ref_seq, ref_type, result, progress, reason)
+        frame = self._encode(dst, self._seq, message)  # EncodeError before anything changes
         self._seen.check_report(dst, ref_seq, ref_type, result)
-        self._seq = (self._seq + 1) & MAX_SEQ
-        self._seen.record_confirm(dst, ref_seq, result, frame)
-        self._outbox.append(frame)
+        self._seen.record_confirm(dst, ref_seq, result, message)
+        self._send_confirm(dst, message)
 
     def cancel_pending(self, dst: int | None = None) -> int:
         """Stop retrying the frames to `dst` (all if None), without DeliveryFailed; returns how many."""
         return len(self._pending.cancel(dst))
+
+    def forget_peer(self, src: int) -> None:
+        """`src` restarted (the mesh layer saw a new epoch from it): its old sequence numbers mean
+        nothing now, so forget what was seen from it and what it still owed us reports for."""
+        self._seen.forget(src)
+        for key in [k for k in self._open if k[0] == src]:
+            del self._open[key]
 
     # --- the aioquic loop ----------------------------------------------------------------------
 
@@ -217,9 +251,14 @@ class Endpoint:
 
     def frames_to_send(self, now: float) -> list[bytes]:
         """Drain the frames queued since the last call, oldest first."""
+        return [frame for frame, _ in self.drain(now)]
+
+    def drain(self, now: float) -> list[tuple[bytes, int]]:
+        """The same as frames_to_send, each frame with the epoch it was numbered in (what an
+        authenticated frame's nonce needs)."""
         frames, self._outbox = self._outbox, []
         stats = self.stats
-        for frame in frames:
+        for frame, _ in frames:
             size = len(frame)
             stats.frames_sent += 1
             stats.bytes_sent += size
@@ -241,7 +280,7 @@ class Endpoint:
         for action, frame in self._pending.expire(now):
             if action is TimeoutAction.RESEND:
                 attempt = min(frame.sends - 1, MAX_ATTEMPT)
-                self._outbox.append(encode_frame(replace(frame.header, attempt=attempt), frame.message))
+                self._queue(encode_frame(replace(frame.header, attempt=attempt), frame.message))
                 self.stats.retries += 1
             else:
                 self.stats.delivery_failures += 1
@@ -268,20 +307,28 @@ class Endpoint:
     def _encode(self, dst: int, seq: int, message: Message) -> bytes:
         return encode_frame(self._header(dst, seq, message), message)
 
+    def _queue(self, frame: bytes) -> None:
+        self._outbox.append((frame, self.epoch))
+
+    def _send_confirm(self, dst: int, message: Confirm) -> None:
+        """A Confirm always goes out under a fresh sequence number, a cached one re-sent too, so
+        that replay protection, which accepts each number once, lets it through."""
+        self._queue(self._encode(dst, self.allocate_seq(), message))
+
+    def _new_epoch(self) -> None:
+        self.epoch = (self.epoch + 1) & MAX_EPOCH
+        self.stats.epochs += 1
+        for frame in self._pending.cancel(None):
+            self.stats.delivery_failures += 1
+            self._events.append(DeliveryFailed(frame.dst, frame.seq, frame.message, frame.sends, frame.last_sent_s))
+
     def _send_confirmable(self, dst: int, message: Message, now: float) -> int:
         self._check_unicast(dst)
-        seq = self._seq
-        for _ in range(MAX_SEQ + 1):  # after a wrap, skip a seq still awaiting its Confirm
-            if (dst, seq) not in self._pending:
-                break
-            seq = (seq + 1) & MAX_SEQ
-        else:
-            raise RuntimeError(f"{MAX_SEQ + 1} frames to {dst} await a Confirm")
-        header = self._header(dst, seq, message)
-        frame = encode_frame(header, message)
-        self._seq = (seq + 1) & MAX_SEQ
+        header = self._header(dst, self._seq, message)
+        frame = encode_frame(header, message)  # EncodeError before the number is spent
+        seq = self.allocate_seq()
         self._pending.add(dst, seq, header, message, now, self.confirm_timeout_s(dst, len(frame)))
-        self._outbox.append(frame)
+        self._queue(frame)
         return seq
 
     def _is_new(self, header: Header, message: Message, now: float) -> bool:
@@ -290,7 +337,7 @@ class Endpoint:
             return True
         self.stats.duplicates += 1
         if cached_confirm is not None:  # Verdict.DUPLICATE_ANSWERED: our Confirm was lost
-            self._outbox.append(cached_confirm)
+            self._send_confirm(header.src, cached_confirm)
         return False
 
     def _on_command(self, header: Header, message: Command, now: float) -> None:
@@ -302,12 +349,26 @@ class Endpoint:
             self._events.append(PoseUpdateReceived(header.src, header.seq, message.pose, now, self._hops))
 
     def _on_confirm(self, header: Header, message: Confirm, now: float) -> None:
-        self.stats.confirms_received += 1
+        """A Confirm counts only if it answers a frame we still retry, or reports on a command whose
+        final result we still await, from the robot we sent it to; any other is dropped and counted
+        (it can never cancel a resend). Commands answered with an interim result stay open for their
+        final report (bounded: the oldest open ones are forgotten first)."""
+        key = (header.src, message.ref_seq)
         frame = self._pending.acknowledge(header.src, message.ref_seq, message.ref_type)
-        if frame is None:  # a later result report, or a Confirm for a frame already confirmed
-            solicited, sends, rtt_s = False, 0, None
-        else:
+        if frame is not None:
             solicited, sends, rtt_s = True, frame.sends, now - frame.last_sent_s
+            if message.result in _INTERIM and message.ref_type in COMMAND_TYPES:
+                self._open[key] = message.ref_type
+                while len(self._open) > MAX_OPEN_COMMANDS:
+                    self._open.popitem(last=False)
+        elif self._open.get(key) == message.ref_type:  # a later result report
+            solicited, sends, rtt_s = False, 0, None
+            if message.result not in _INTERIM:
+                del self._open[key]
+        else:
+            self.stats.confirms_unmatched += 1
+            return
+        self.stats.confirms_received += 1
         self._events.append(
             ConfirmReceived(
                 header.src, message.ref_seq, message.ref_type, message.result, message.progress,

@@ -214,12 +214,15 @@ class Heartbeat:
     """Broadcast liveness beacon (after Bluetooth Mesh heartbeats).
 
     `active_command`: MessageType value of the running command, 0 when idle. `init_ttl`: the TTL the
-    frame was sent with (0..15), so a receiver can count hops as init_ttl - ttl + 1 once relaying exists.
+    frame was sent with (0..15), so a receiver counts hops as init_ttl - ttl + 1. `epoch`: the
+    sender's boot/wrap counter (0..2**32-1) that authenticated frames use in their nonce; in a
+    sealed Heartbeat it travels in the clear, authenticated (docs/protocol.md section 12).
     """
 
     TYPE: ClassVar[MessageType] = MessageType.HEARTBEAT
     active_command: int
     init_ttl: int
+    epoch: int = 0
 
 
 @dataclass(frozen=True, slots=True)

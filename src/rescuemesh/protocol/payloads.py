@@ -101,7 +101,7 @@ def _push_show(buf: bytearray, msg: ShowCam | ShowScan) -> None:
     push_period(buf, msg.period_s)
     if not 0 <= msg.count <= 255:
         raise EncodeError(f"count {msg.count} out of range 0..255")
-    if msg.count != 1 and round(msg.period_s * 10.0) == 0:
+    if msg.count != 1 and buf[-1] == 0:  # the period byte just pushed: the rounded period, in units
         raise EncodeError("a repeated ShowCam/ShowScan needs a period of at least 0.1 s")
     push_u8(buf, msg.count)
 
@@ -179,17 +179,21 @@ def _push_heartbeat(buf: bytearray, msg: Heartbeat) -> None:
         raise EncodeError(f"active_command {msg.active_command!r} is neither 0 nor a command type")
     if not 0 <= msg.init_ttl <= MAX_TTL:
         raise EncodeError(f"init_ttl {msg.init_ttl} out of range 0..15")
+    if not (isinstance(msg.epoch, int) and 0 <= msg.epoch <= 0xFFFFFFFF):
+        raise EncodeError(f"epoch {msg.epoch!r} out of range 0..2**32-1")
     push_u8(buf, msg.active_command)
     push_u8(buf, msg.init_ttl)
+    buf += _U32.pack(msg.epoch)
 
 
 def _pull_heartbeat(data: bytes, offset: int, end: int) -> Heartbeat:
     active, init_ttl = data[offset], data[offset + 1]
+    epoch = _U32.unpack_from(data, offset + 2)[0]
     if active not in _HEARTBEAT_COMMANDS:
         raise MalformedPayload(f"Heartbeat active_command {active}")
     if init_ttl > MAX_TTL:
         raise MalformedPayload(f"Heartbeat init_ttl {init_ttl}")
-    return Heartbeat(active, init_ttl)
+    return Heartbeat(active, init_ttl, epoch)
 
 
 def _push_segment_ack(buf: bytearray, msg: SegmentAck) -> None:
@@ -240,7 +244,7 @@ _CODECS: dict[type, tuple[Callable, int, int, Callable]] = {
     MoveAround: (_push_move_around, 10, 10, _pull_move_around),
     Confirm: (_push_confirm, 6, 6, _pull_confirm),
     PoseUpdate: (_push_pose_of("pose"), 8, 8, _pull_pose_as(PoseUpdate)),
-    Heartbeat: (_push_heartbeat, 2, 2, _pull_heartbeat),
+    Heartbeat: (_push_heartbeat, 6, 6, _pull_heartbeat),
     SegmentAck: (_push_segment_ack, 10, 10, _pull_segment_ack),
     Data: (_push_data, DATA_HEADER_BYTES, DATA_HEADER_BYTES + MAX_DATA_BYTES, _pull_data),
 }
@@ -254,6 +258,7 @@ PAYLOAD_BYTES: dict[MessageType, tuple[int, int]] = {
     cls.TYPE: (spec[1], spec[2]) for cls, spec in _CODECS.items()
 }
 
+_U32 = struct.Struct(">I")
 _ENCODE_BUGS = (TypeError, ValueError, OverflowError, AttributeError, struct.error)
 
 

@@ -227,7 +227,7 @@ class SeenFrame:
     message: Message
     first_seen_s: float
     last_result: ResultCode | None = None
-    confirm_frame: bytes | None = None
+    confirm_frame: object | None = None
 
 
 class DuplicateCache:
@@ -241,7 +241,7 @@ class DuplicateCache:
     def __len__(self) -> int:
         return sum(len(seen) for seen in self._by_source.values())
 
-    def observe(self, src: int, seq: int, message: Message, now: float) -> tuple[Verdict, bytes | None]:
+    def observe(self, src: int, seq: int, message: Message, now: float) -> tuple[Verdict, object | None]:
         """Classify a received confirmable frame; returns the verdict and the Confirm to resend."""
         seen = self._by_source.get(src)
         if seen is None:
@@ -255,6 +255,10 @@ class DuplicateCache:
         if len(seen) > self._size:
             seen.popitem(last=False)
         return Verdict.NEW, None
+
+    def forget(self, src: int) -> None:
+        """Drop everything seen from `src` (it restarted: its sequence numbers start over)."""
+        self._by_source.pop(src, None)
 
     def lookup(self, src: int, seq: int) -> SeenFrame | None:
         seen = self._by_source.get(src)
@@ -274,8 +278,9 @@ class DuplicateCache:
             last = "nothing" if entry.last_result is None else entry.last_result.name
             raise ValueError(f"cannot report {ResultCode(result).name} after {last} (seq {seq} from {src})")
 
-    def record_confirm(self, src: int, seq: int, result: ResultCode, frame: bytes) -> bool:
-        """Cache `frame` as the answer to (src, seq); False if that frame is not (or no longer) known."""
+    def record_confirm(self, src: int, seq: int, result: ResultCode, frame: object) -> bool:
+        """Cache `frame` (the Confirm the endpoint re-sends, opaque here) as the answer to (src,
+        seq); False if that frame is not (or no longer) known."""
         entry = self.lookup(src, seq)
         if entry is None:
             return False

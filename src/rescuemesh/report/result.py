@@ -43,6 +43,12 @@ def build_result(scenario, rt, verdict, wall_time_s: float, map_model) -> dict:
             "radio": rt.config.radio.value,
             "radio_model": rt.channel.settings(),
             "relay": rt.config.relay,
+            "security": {
+                "authenticated": rt.config.secure,
+                "frames": "AES-CCM-128, 4-byte MIC, replay window" if rt.config.secure
+                else "INSECURE: CRC-32 only, no authentication, no encryption, no replay protection",
+                "team_key": scenario.options.key_source,
+            },
             "initial_ttl": rt.config.mesh.initial_ttl,
             "heartbeat_period_s": rt.config.mesh.heartbeat_period_s,
             "link_lost_after_missed_heartbeats": rt.config.mesh.lost_after_missed,

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 from rescuemesh.body import Body
 from rescuemesh.geometry import Pose2D
-from rescuemesh.mesh import NeighbourFound, NeighbourLost, TransferComplete, TransferFailed
+from rescuemesh.mesh import NeighbourFound, NeighbourLost, PeerRestarted, TransferComplete, TransferFailed
 from rescuemesh.nav import Costmap, NavigateToPose
 from rescuemesh.protocol import (
     CommandReceived,
@@ -175,7 +175,8 @@ class RobotBrain:
         self.lost_peers: dict[int, float] = {}  # peer with a shared command -> end of its reconnect window (s)
         self.forwarder = Forwarder(self.address, timeout_s=self.config.forward_timeout_s,
                                    capacity=self.config.forward_capacity)
-        self._next_heartbeat_s = heartbeat_phase_s(self.address, self.config.heartbeat_period_s)
+        self._next_heartbeat_s = 0.0  # the first at once (peers learn our epoch from it), then on our phase
+        self._heartbeat_phase_s = heartbeat_phase_s(self.address, self.config.heartbeat_period_s)
         self._handlers = {Follow: self._on_follow, Stop: self._on_stop, MoveAround: self._on_move_around,
                           ForwardMsg: self._on_forward}
         self._on_protocol = {
@@ -186,6 +187,7 @@ class RobotBrain:
         self._on_network = {
             NeighbourLost: self._on_neighbour_lost, NeighbourFound: self._on_neighbour_found,
             TransferComplete: _ignore, TransferFailed: self._on_transfer_failed,
+            PeerRestarted: self._on_peer_restarted,
         }
 
     # ----- what a mission script (or, later, an operator or ROS node) asks of this robot -----
@@ -226,7 +228,12 @@ class RobotBrain:
         if now >= self._next_heartbeat_s:
             active = self.running.msg_type if self.running and self.running.msg_type else 0
             self.endpoint.send_heartbeat(now, active_command=int(active))
-            self._next_heartbeat_s = now + self.config.heartbeat_period_s
+            period = self.config.heartbeat_period_s
+            if self._heartbeat_phase_s is not None:  # after the first: on this robot's phase
+                self._next_heartbeat_s = now + (self._heartbeat_phase_s - now) % period or period
+                self._heartbeat_phase_s = None
+            else:
+                self._next_heartbeat_s = now + period
         velocity = (0.0, 0.0)
         if self.running is not None:
             behaviour = self.running.behaviour
@@ -247,7 +254,8 @@ class RobotBrain:
     def _on_command(self, event: CommandReceived, now: float) -> None:
         self._forget_reused_seq(event)
         hops = f" ({event.hops} hops)" if event.hops > 1 else ""
-        self._note(event.now, "command_received", f"{type(event.command).__name__} from {robot_name(event.src)}{hops}")
+        self._note(event.now, "command_received",
+                   f"{type(event.command).__name__} from {robot_name(event.src)} (seq {event.seq}){hops}")
         self._handlers.get(type(event.command), self._on_unsupported)(event, now)
 
     def _on_frame_rejected(self, event: FrameRejected, now: float) -> None:
@@ -371,6 +379,9 @@ class RobotBrain:
         if sent.msg_type in MOTION_COMMANDS:
             # The receiver may have executed it with every Confirm lost: bring both sides to a stop.
             self.command_stop(event.dst, now)
+
+    def _on_peer_restarted(self, event: PeerRestarted, now: float) -> None:
+        self._note(now, "peer_restarted", f"{robot_name(event.address)} in epoch {event.epoch}")
 
     def _on_transfer_failed(self, event: TransferFailed, now: float) -> None:
         self._note(now, "transfer_failed",

@@ -18,6 +18,9 @@ import numpy as np
 from rescuemesh.geometry import Pose2D
 from rescuemesh.maps import MapModel
 from rescuemesh.mesh import TEAM_RELAY_RETRANSMIT_COUNT, MeshConfig, MeshNode, NetworkStack
+from rescuemesh.mesh.keys import team_key_from_seed
+from rescuemesh.mesh.replay import DUPLICATE_MEMORY
+from rescuemesh.mesh.security import FrameSealer
 from rescuemesh.nav import Costmap, NavigateToPose
 from rescuemesh.protocol import Endpoint, EndpointConfig, ReliabilityConfig
 from rescuemesh.radio import make_channel
@@ -39,6 +42,8 @@ class SimConfig:
 
     `loss`: extra independent per-reception loss on top of the channel. `relay`: every robot has
     the relay feature (False: `--no-relay`). `radio_params`: channel settings overriding defaults.
+    `secure`: authenticated, encrypted frames (False: `--insecure`, CRC frames); `team_key`: the
+    team key (None: derived from the seed, for simulation only).
     """
 
     seed: int = 0
@@ -48,6 +53,8 @@ class SimConfig:
     radio: RadioKind = RadioKind.BLE
     radio_params: dict = field(default_factory=dict)
     relay: bool = True
+    secure: bool = True
+    team_key: bytes | None = None
     ack_timeout_s: float = 0.15
     max_sends: int = 3
     brain: BrainConfig = field(default_factory=BrainConfig)
@@ -83,6 +90,12 @@ class SimRuntime:
         self.channel = make_channel(config.radio.value, grid=map_model.grid, seed=radio_seed, **config.radio_params)
         self.medium = SimMedium(self.channel, radio_seed, extra_loss=config.loss, record=True)
         reliability = ReliabilityConfig(ack_timeout_s=config.ack_timeout_s, max_sends=config.max_sends)
+        self.sealer = None
+        if config.secure:
+            key = config.team_key if config.team_key is not None else team_key_from_seed(config.seed)
+            self.sealer = FrameSealer.from_team_key(key)
+            # replay protection decides what is new; the duplicate cache must remember as many commands
+            reliability = replace(reliability, duplicate_window_s=float("inf"), duplicate_cache_size=DUPLICATE_MEMORY)
         mesh = replace(config.mesh, relay=config.relay)
         self.costmap = Costmap(map_model.grid)
         self.brains: dict[str, RobotBrain] = {}
@@ -91,7 +104,7 @@ class SimRuntime:
             body = self.world.bodies[name]
             address = robot_address(name)
             endpoint = Endpoint(address, EndpointConfig(reliability=reliability, initial_ttl=mesh.initial_ttl))
-            stack = self.stacks[name] = NetworkStack(endpoint, MeshNode(address, mesh))
+            stack = self.stacks[name] = NetworkStack(endpoint, MeshNode(address, mesh, self.sealer))
             nav = NavigateToPose(self.costmap)
             self.brains[name] = RobotBrain(name, body, stack, nav, self.costmap, config.brain)
             self.medium.attach(address, stack, _position_of(body))

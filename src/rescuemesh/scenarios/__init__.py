@@ -8,10 +8,12 @@ from rescuemesh.scenarios.disconnect import DisconnectScenario
 from rescuemesh.scenarios.follow import FollowScenario
 from rescuemesh.scenarios.move_around import MoveAroundScenario
 from rescuemesh.scenarios.relay import RelayScenario
+from rescuemesh.scenarios.spoof import SpoofScenario
 from rescuemesh.scenarios.stop import StopScenario
 
 SCENARIOS: dict[str, type[Scenario]] = {
-    cls.name: cls for cls in (FollowScenario, StopScenario, MoveAroundScenario, RelayScenario, DisconnectScenario)
+    cls.name: cls
+    for cls in (FollowScenario, StopScenario, MoveAroundScenario, RelayScenario, DisconnectScenario, SpoofScenario)
 }
 
 

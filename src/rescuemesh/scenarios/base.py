@@ -39,6 +39,9 @@ class ScenarioOptions:
     radio: RadioKind = RadioKind.BLE
     relay: bool = True
     outage_s: float | None = None  # disconnect: how long robot_1's radio is silent
+    secure: bool = True  # authenticated frames (False: --insecure, CRC only)
+    team_key: bytes | None = None  # --key FILE; None: derived from the seed (simulation only)
+    key_source: str = "derived from the seed (simulation only)"
 
 
 @dataclass
@@ -105,7 +108,7 @@ class Scenario(abc.ABC):
     def sim_config(self) -> SimConfig:
         """How the runtime is set up for this scenario (a scenario may override parts)."""
         o = self.options
-        return SimConfig(seed=o.seed, loss=o.loss, radio=o.radio, relay=o.relay)
+        return SimConfig(seed=o.seed, loss=o.loss, radio=o.radio, relay=o.relay, secure=o.secure, team_key=o.team_key)
 
     def default_starts(self) -> dict[str, Pose2D]:
         """Start poses before --start: the map's (a scenario may place its robots itself)."""

@@ -214,6 +214,9 @@ class SimMedium:
         self._timer_at: dict[int, float] = {}
         self._pair_rngs: dict[tuple[int, int, int], np.random.Generator] = {}
         self._now = 0.0
+        #: Optional observer of every delivery (a test harness, the spoof scenario): called as
+        #: observe(transmitter, receiver, data, now, deliver) and must call deliver() itself.
+        self.observe: Callable[[int, int, bytes, float, Callable[[], None]], None] | None = None
 
     # --- set-up ------------------------------------------------------------------------------
 
@@ -393,7 +396,14 @@ class SimMedium:
             return
         timing = self.timing
         relay_delay = receiver.rng.random() * timing.relay_delay_max_s if timing.relay_delay_max_s else 0.0
-        receiver.stack.receive(transmission.data, at, rssi_dbm=reception.verdict.rssi_dbm, relay_delay_s=relay_delay)
+        def deliver() -> None:
+            receiver.stack.receive(transmission.data, at, rssi_dbm=reception.verdict.rssi_dbm,
+                                   relay_delay_s=relay_delay)
+
+        if self.observe is None:
+            deliver()
+        else:
+            self.observe(reception.sender.address, receiver.address, transmission.data, at, deliver)
         self._collect(receiver, at)
 
     def _count_transmission(self, transmission, size: int, airtime_s: float) -> None:
