@@ -13,6 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from rescuemesh.mesh import TEAM_RELAY_RETRANSMIT_COUNT, MeshConfig, MeshNode, NetworkStack
+from rescuemesh.mesh.keys import team_key_from_seed
+from rescuemesh.mesh.security import FrameSealer
 from rescuemesh.protocol import CommandReceived, ConfirmReceived, Endpoint, EndpointConfig, ResultCode, Stop
 from rescuemesh.radio import DiscChannel
 from rescuemesh.transport import SimMedium
@@ -34,12 +36,14 @@ class LatencyFigures:
 
 
 def _team(positions: list[tuple[float, float]], seed: int, *, extra_loss: float = 0.0, relay: bool = True):
+    """Robots on a 10 m disc, with authenticated frames as the simulated team has them."""
     medium = SimMedium(DiscChannel(), seed, extra_loss=extra_loss)
+    sealer = FrameSealer.from_team_key(team_key_from_seed(seed))
     stacks = []
     for address, xy in enumerate(positions, start=1):
         endpoint = Endpoint(address, EndpointConfig(initial_ttl=7))
         config = MeshConfig(relay=relay, relay_retransmit_count=TEAM_RELAY_RETRANSMIT_COUNT)
-        stack = NetworkStack(endpoint, MeshNode(address, config))
+        stack = NetworkStack(endpoint, MeshNode(address, config, sealer))
         medium.attach(address, stack, lambda xy=xy: xy)
         stacks.append(stack)
     return medium, stacks
@@ -72,14 +76,16 @@ def _exchange(medium: SimMedium, stacks: list[NetworkStack], t0: float, limit_s:
 
 
 def _warm_up(medium: SimMedium, stacks: list[NetworkStack], until_s: float) -> float:
-    """Heartbeats from everyone so every node knows its hop count to every other, as a team does."""
+    """Heartbeats from everyone, a few rounds (some are lost), so that every node knows every other's
+    hop count and epoch, as a team does after a few seconds."""
     t = 0.0
-    for stack in stacks:
-        stack.endpoint.send_heartbeat(t)
-        medium.flush(t)
-        t = round(t + 0.05, 9)
-        medium.pump(t)
-    medium.pump(until_s)
+    for _ in range(8):
+        for stack in stacks:
+            stack.endpoint.send_heartbeat(t)
+            medium.flush(t)
+            t = round(t + 0.05, 9)
+            medium.pump(t)
+    medium.pump(max(until_s, t))
     for stack in stacks:
         while stack.endpoint.next_event() is not None:
             pass
@@ -91,7 +97,7 @@ def chain_confirm_latency(hops: int, trials: int = 100, seed: int = 0) -> Latenc
     if hops < 1:
         raise ValueError(f"hops must be >= 1, got {hops}")
     medium, stacks = _team([(CHAIN_SPACING_M * i, 0.0) for i in range(hops + 1)], seed)
-    t = _warm_up(medium, stacks, 1.0)
+    t = _warm_up(medium, stacks, 3.0)
     rtts = []
     for _ in range(trials):
         answered = _exchange(medium, stacks, t, 3.0)
@@ -112,7 +118,7 @@ def delivery_ratio(relays: int, *, extra_loss: float = 0.3, trials: int = 1000, 
     positions = [(0.0, 0.0), (6.0, 0.0)] + [(3.0, 2.0 + 1.0 * k) for k in range(relays)]
     medium, stacks = _team(positions, seed, extra_loss=extra_loss)
     ordered = [stacks[0], *stacks[2:], stacks[1]]  # sender first, receiver last
-    t = _warm_up(medium, ordered, 1.0)
+    t = _warm_up(medium, ordered, 3.0)
     confirmed = 0
     for _ in range(trials):
         if _exchange(medium, ordered, t, window_s) is not None:
