@@ -157,15 +157,21 @@ def test_a_captured_stop_replayed_later_is_never_executed_again(delay_s):
     assert s.dropped_replay >= 1 or delay_s < MeshConfig().cache_lifetime_s  # the cache caught it first
 
 
-def test_a_late_genuine_resend_is_answered_from_the_cache_not_executed_twice():
-    # this used to execute twice a resend that arrived 10.2 s after the original
-    a, b = stack(1), stack(2)
-    air = Air([a, b])
+def stop_received_once(a: NetworkStack, b: NetworkStack, air: Air) -> int:
+    """robot_1 sends robot_2 a Stop that arrives once; returns its seq."""
     introduce(air)
     seq = a.endpoint.send_command(2, Stop(), air.now)
     (first,) = a.transmissions(air.now)
     b.receive(first.data, air.now)
     assert [type(e) for e in events(b)] == [CommandReceived]
+    return seq
+
+
+def test_a_late_genuine_resend_is_answered_from_the_cache_not_executed_twice():
+    # this used to execute twice a resend that arrived 10.2 s after the original
+    a, b = stack(1), stack(2)
+    air = Air([a, b])
+    seq = stop_received_once(a, b, air)
     b.endpoint.confirm(1, seq, MessageType.STOP, ResultCode.DONE, air.now)
     b.transmissions(air.now)  # that Confirm is lost
     a.handle_timer(air.now + 0.15)
@@ -182,11 +188,7 @@ def test_a_flood_of_forged_frames_cannot_evict_state_and_cause_a_double_executio
     # this used to work: 256 spoofed frames from one source evicted the duplicate cache
     a, b = stack(1), stack(2)
     air = Air([a, b])
-    introduce(air)
-    seq = a.endpoint.send_command(2, Stop(), air.now)
-    (first,) = a.transmissions(air.now)
-    b.receive(first.data, air.now)
-    events(b)
+    seq = stop_received_once(a, b, air)
     for k in range(1000):
         b.receive(forged(1, 2, Follow(Pose(k % 50, 1, 0, 0)), seq=(seq + 1 + k) & 0xFFFF), air.now)
     a.handle_timer(air.now + 0.15)
