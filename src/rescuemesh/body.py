@@ -1,17 +1,26 @@
 """The interface between a robot's brain and its body, and the sensor messages that cross it.
 
-Owns: Body (what the brain may ask of a body), LaserScan (sensor_msgs/LaserScan in spirit).
+Owns: Body (what the brain may ask of a body), FlyingBody (what more a flying one offers), RobotKind,
+FlightPhase, LandingTarget, LaserScan (sensor_msgs/LaserScan in spirit).
 Must not know: what implements a body (MuJoCo, a remote process, a ROS robot).
 """
 
 from __future__ import annotations
 
 import abc
+import enum
 from dataclasses import dataclass
 
 import numpy as np
 
 from rescuemesh.geometry import Pose2D
+
+
+class RobotKind(enum.Enum):
+    """What moves a robot: wheels on the floor or rotors in the air. Chosen per robot by the scenario."""
+
+    GROUND = "ground"
+    FLYING = "flying"
 
 
 @dataclass(frozen=True)
@@ -47,12 +56,15 @@ class Body(abc.ABC):
     """What a robot brain may read from and command to its body.
 
     Implemented by `rescuemesh.sim` for MuJoCo TurtleBots; later by a Zenoh proxy and a ROS bridge.
+    A flying robot's body is a `FlyingBody` (below); `kind` tells the two apart without isinstance.
     """
 
     name: str
     max_linear_speed: float  # in m/s
     max_angular_speed: float  # in rad/s
     radius: float  # footprint radius in m
+    kind: RobotKind = RobotKind.GROUND  # a default, so every existing Body is a ground robot
+    top_height: float | None = None  # height in m above the floor of a top a drone may land on; None: none
 
     @abc.abstractmethod
     def pose(self) -> Pose2D:
@@ -69,3 +81,81 @@ class Body(abc.ABC):
     @abc.abstractmethod
     def set_velocity(self, linear: float, angular: float) -> None:
         """Command a body twist: `linear` in m/s along x, `angular` in rad/s about z. Clamped to the limits."""
+
+
+class FlightPhase(enum.Enum):
+    """What a flying body is doing (its autopilot's state; see rescuemesh.sim.flight for the transitions)."""
+
+    OFF = "off"  # rotors off, not landed on a robot (on the floor before take-off, or rotors_off() in the air)
+    FLY = "fly"  # flying to a goal or, when landing, to above the target: climbs to the altitude first
+    HOLD = "hold"  # hovering at the goal, or moving by set_velocity at a held altitude
+    ALIGN = "align"  # landing: hovering above the target at cruise altitude, tracking it
+    DESCEND = "descend"  # landing: descending onto the target, tracking it
+    TOUCHDOWN = "touchdown"  # landing: feet down, rotors off, waiting for the contact to settle
+    LANDED = "landed"  # rotors off, resting on the target
+
+
+@dataclass(frozen=True, slots=True)
+class LandingTarget:
+    """The top to land on, as estimated at the moment it is handed to `FlyingBody.land_on`.
+
+    `x`, `y`: centre of the top in the map frame, in m; `z`: height of its surface above the floor in m
+    (a TurtleBot 2's top plate: `Body.top_height` of that robot); `vx`, `vy`: its velocity in m/s in the
+    map frame. The body predicts the target forward with this velocity until the next estimate.
+    """
+
+    x: float
+    y: float
+    z: float
+    vx: float = 0.0
+    vy: float = 0.0
+
+
+class FlyingBody(Body):
+    """A body that flies (a quadrotor): the brain commands goals and landings; its autopilot flies them.
+
+    `set_velocity(linear, angular)` still works, as a planar twist at the altitude held when it started
+    (so the ground behaviours can steer a drone), with two rules that make the brain's every-tick call
+    harmless: (0, 0) only stops a twist already running (it does not cancel a `fly_to` or a landing),
+    and any twist is ignored while the rotors are off (a landed drone stays landed). `pose()` is the
+    projection on the floor (x, y, yaw); `scan()` may be None (no lidar).
+    """
+
+    kind: RobotKind = RobotKind.FLYING
+    cruise_altitude: float  # m above the floor: above every wall and piece of furniture
+
+    @abc.abstractmethod
+    def position_3d(self) -> tuple[float, float, float]:
+        """Position (x, y, z) in m in the map frame (z above the floor)."""
+
+    @abc.abstractmethod
+    def velocity_3d(self) -> tuple[float, float, float]:
+        """Velocity (vx, vy, vz) in m/s in the map frame."""
+
+    @abc.abstractmethod
+    def flight_phase(self) -> FlightPhase:
+        """What the autopilot is doing now."""
+
+    @abc.abstractmethod
+    def fly_to(self, x: float, y: float, z: float | None = None, yaw: float | None = None) -> None:
+        """Fly to (x, y) m at height `z` m (None: `cruise_altitude`) and hover there facing `yaw` rad
+        (None: the present heading). Starts the rotors when they are off. Climbs vertically first when
+        below the goal's height, so it never crosses furniture low. Cancels a landing."""
+
+    @abc.abstractmethod
+    def land_on(self, target: LandingTarget) -> None:
+        """Land on `target` (start, or update the estimate of a landing under way). Call again with each
+        fresh estimate (each PoseUpdate); ignored once LANDED. Phases FLY, ALIGN, DESCEND, TOUCHDOWN,
+        then LANDED with the rotors off."""
+
+    @abc.abstractmethod
+    def hold(self) -> None:
+        """Hover where it is now (cancels a `fly_to`, a twist or a landing). No-op while the rotors are off."""
+
+    @abc.abstractmethod
+    def rotors_off(self) -> None:
+        """Stop the rotors now (in the air it falls: meant for after landing or an emergency)."""
+
+    @abc.abstractmethod
+    def landed_on(self) -> str | None:
+        """Name of the robot whose top the feet rest on now, or None (in the air, on the floor)."""

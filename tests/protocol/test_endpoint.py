@@ -541,3 +541,17 @@ def test_a_final_report_carries_its_reason():
     b.confirm(1, seq, T.FOLLOW, R.FAILED, 0.5, reason=Reason.LINK_LOST)
     link.pump()
     assert [(e.result, e.reason) for e in drain(a)] == [(R.ACCEPTED, Reason.NONE), (R.FAILED, Reason.LINK_LOST)]
+
+
+def test_a_final_report_can_be_repeated_under_a_fresh_number_and_counts_once():
+    a, b, link = pair()
+    seq = a.send_command(2, Follow(P), 0.0)
+    link.pump()
+    b.confirm(1, seq, T.FOLLOW, R.ACCEPTED, 0.0)
+    b.confirm(1, seq, T.FOLLOW, R.CANCELLED, 0.5, reason=Reason.REPLACED)
+    assert b.repeat_report(1, seq) and b.repeat_report(1, seq) and not b.repeat_report(1, seq + 99)
+    frames = b.frames_to_send(0.5)
+    assert len({decode_frame(f)[0].seq for f in frames}) == 4  # ACCEPTED, CANCELLED and two repeats
+    for frame in frames:
+        a.receive(frame, 0.6)
+    assert [e.result for e in drain(a)] == [R.ACCEPTED, R.CANCELLED] and a.stats.confirms_unmatched == 2

@@ -36,7 +36,7 @@ OTHERS = [Confirm(1, MessageType.STOP, ResultCode.DONE), PoseUpdate(P), Heartbea
 def test_result_codes_follow_mav_result_order():
     assert [(r.name, r.value) for r in ResultCode] == [
         ("ACCEPTED", 0), ("IN_PROGRESS", 1), ("DONE", 2), ("DENIED", 3),
-        ("UNSUPPORTED", 4), ("FAILED", 5), ("CANCELLED", 6),
+        ("UNSUPPORTED", 4), ("FAILED", 5), ("CANCELLED", 6), ("TEMPORARILY_REJECTED", 7),
     ]
 
 

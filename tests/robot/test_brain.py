@@ -1,5 +1,7 @@
 """The brain's command handler over the real protocol and radio link, on unicycle bodies."""
 
+from dataclasses import replace
+
 import pytest
 
 from team import Team
@@ -9,6 +11,7 @@ from rescuemesh.protocol import (Confirm, ConfirmReceived, Data, DataKind, Endpo
                                  MessageType, MoveAround, Pose, Reason, ResultCode, Return, ShowCam, ShowScan, Stop,
                                  encode_inner)
 from rescuemesh.protocol.codec import decode_frame
+from rescuemesh.robot.policy import Rank
 
 ONE, TWO = 1, 2
 
@@ -18,8 +21,7 @@ def two_robots(**kw):
 
 
 @pytest.mark.parametrize("command", [
-    Goto(Pose(5, 5, 0, 0)), Return(), LandOnTop(Pose(1, 1, 0.3, 0)), ShowCam(Pose(1, 1, 0, 0), 1.0, 1),
-    ShowScan(Pose(1, 1, 0, 0), 0.5, 0),
+    LandOnTop(Pose(1, 1, 0.3, 0)), ShowCam(Pose(1, 1, 0, 0), 1.0, 1), ShowScan(Pose(1, 1, 0, 0), 0.5, 0),
 ])
 def test_commands_not_built_yet_are_answered_unsupported_and_do_nothing(command):
     team = two_robots()
@@ -274,3 +276,77 @@ def test_forward_msg_that_cannot_be_done_is_denied_with_the_reason(target, inner
     team.run(1.0)
     sent = team.brains["robot_1"].outgoing[seq]
     assert (sent.result, sent.reason) == (ResultCode.DENIED, reason)
+
+
+# --- Goto, Return, priorities ------------------------------------------------------------------------
+
+
+def test_goto_reports_accepted_progress_and_done_at_the_goal():
+    team = two_robots()
+    leader = team.brains["robot_1"]
+    seq = leader.command_goto(TWO, Pose2D(8.0, 9.0, 1.0), 0.0)
+    reports = []
+    for _ in range(40):
+        team.run(0.5)
+        reports.append((leader.outgoing[seq].result, team.brains["robot_1"].endpoint.stats.confirms_received))
+        if leader.outgoing[seq].result == ResultCode.DONE:
+            break
+    assert leader.outgoing[seq].result == ResultCode.DONE
+    end = team.bodies["robot_2"].pose()
+    assert end.distance_to(Pose2D(8.0, 9.0)) <= 0.15 and abs(end.yaw - 1.0) <= 0.3
+    kinds = [e.detail for e in leader.log if e.kind == "confirm"]
+    assert kinds[0].endswith("ACCEPTED") and any("IN_PROGRESS" in k for k in kinds) and kinds[-1].endswith("DONE")
+
+
+def test_return_drives_back_to_the_base():
+    team = two_robots()
+    team.brains["robot_2"].config = replace(team.brains["robot_2"].config, base=Pose2D(1.5, 6.0, 0.0))
+    leader = team.brains["robot_1"]
+    leader.command_goto(TWO, Pose2D(6.0, 9.0, 0.0), 0.0)
+    team.run(15.0)
+    seq = leader.command_return(TWO, team.time)
+    team.run(20.0)
+    assert leader.outgoing[seq].result == ResultCode.DONE
+    assert team.bodies["robot_2"].pose().distance_to(Pose2D(1.5, 6.0)) <= 0.15
+
+
+def three_with_ranks():
+    team = Team({"robot_1": Pose2D(3.0, 6.0), "robot_2": Pose2D(1.5, 6.0), "robot_3": Pose2D(1.5, 3.0)})
+    ranks = {1: Rank.TEAM_LEAD, 3: Rank.PEER}
+    for brain in team.brains.values():
+        brain.config = replace(brain.config, ranks=ranks)
+    return team
+
+
+def test_a_lower_ranked_goto_is_temporarily_rejected_while_a_team_lead_is_followed():
+    team = three_with_ranks()
+    follow = team.brains["robot_1"].command_follow(TWO, 0.0)
+    team.run(1.0)
+    goto = team.brains["robot_3"].command_goto(TWO, Pose2D(8.0, 2.0), team.time)
+    team.run(1.0)
+    sent = team.brains["robot_3"].outgoing[goto]
+    assert (sent.result, sent.reason) == (ResultCode.TEMPORARILY_REJECTED, Reason.MOTION_HELD)
+    assert team.brains["robot_2"].behaviour == "follow" and team.brains["robot_1"].outgoing[follow].result == ResultCode.ACCEPTED
+
+
+def test_a_higher_rank_preempts_and_the_preempted_sender_gets_cancelled_with_the_reason():
+    team = three_with_ranks()
+    for brain in team.brains.values():
+        brain.config = replace(brain.config, ranks={1: Rank.TEAM_LEAD, 3: Rank.OPERATOR})
+    follow = team.brains["robot_1"].command_follow(TWO, 0.0)
+    team.run(1.0)
+    goto = team.brains["robot_3"].command_goto(TWO, Pose2D(8.0, 2.0), team.time)
+    team.run(1.0)
+    assert team.brains["robot_3"].outgoing[goto].result in (ResultCode.ACCEPTED, ResultCode.IN_PROGRESS)
+    sent = team.brains["robot_1"].outgoing[follow]
+    assert (sent.result, sent.reason) == (ResultCode.CANCELLED, Reason.REPLACED)
+    assert team.brains["robot_2"].behaviour == "navigate"
+
+
+def test_stop_always_wins_even_from_a_peer():
+    team = three_with_ranks()
+    team.brains["robot_1"].command_follow(TWO, 0.0)
+    team.run(1.0)
+    stop = team.brains["robot_3"].command_stop(TWO, team.time)
+    team.run(1.0)
+    assert team.brains["robot_3"].outgoing[stop].result == ResultCode.DONE and team.brains["robot_2"].behaviour == "idle"

@@ -77,11 +77,11 @@ def test_real_process_prints_no_traceback(tmp_path):
     assert "Traceback" not in proc.stderr and "radius" in proc.stderr
 
 
-def test_scenarios_lists_the_three(capsys):
+def test_scenarios_lists_every_scenario_with_one_line_each(capsys):
     assert main(["scenarios"]) == 0
-    out = capsys.readouterr().out
-    for name in ("follow", "stop", "move-around"):
-        assert name in out
+    lines = capsys.readouterr().out.splitlines()
+    names = ("follow", "stop", "move-around", "relay", "disconnect", "spoof", "goto", "return", "priority")
+    assert [line.split()[0] for line in lines] == list(names)
 
 
 @pytest.mark.parametrize("where", ["a_file", "/proc/rescuemesh"])

@@ -185,3 +185,25 @@ def test_a_run_with_a_key_file_is_authenticated_with_that_key(tmp_path):
     code, result = run(tmp_path / "out", "stop", "--key", str(tmp_path / "team.key"))
     assert_common(result, code)
     assert result["settings"]["security"]["team_key"] == f"from {tmp_path / 'team.key'}"
+
+
+def test_goto_arrives_within_tolerance_with_progress_reports(tmp_path):
+    code, result = run(tmp_path, "goto")
+    assert_common(result, code)
+    m = result["metrics"]
+    assert m["final_error_m"] <= 0.15 and m["final_yaw_error_rad"] <= 0.3 and m["progress_reports"] >= 3
+    assert m["goal_region"] == result["robots"]["robot_2"]["final_region"] == "room_south"
+
+
+def test_return_brings_robot_2_back_to_its_base(tmp_path):
+    code, result = run(tmp_path, "return")
+    assert_common(result, code)
+    assert result["metrics"]["base_error_m"] <= 0.15 and result["robots"]["robot_2"]["final_region"] == "hall"
+
+
+def test_priority_rejects_the_peer_and_lets_the_operator_preempt(tmp_path):
+    code, result = run(tmp_path, "priority")
+    assert_common(result, code)
+    m = result["metrics"]
+    assert m["peer_answer"] == ["TEMPORARILY_REJECTED", "MOTION_HELD"]
+    assert m["follow_end"] == ["CANCELLED", "REPLACED"] and m["operator_answer"][0] in ("ACCEPTED", "IN_PROGRESS")

@@ -219,6 +219,16 @@ class Endpoint:
         self._seen.record_confirm(dst, ref_seq, result, message)
         self._send_confirm(dst, message)
 
+    def repeat_report(self, dst: int, ref_seq: int) -> bool:
+        """Send the latest report on frame `ref_seq` from `dst` once more (a final result is not
+        confirmed, so the application may repeat it to make its loss unlikely). False if nothing
+        was reported on that frame or it is no longer remembered."""
+        entry = self._seen.lookup(dst, ref_seq)
+        if entry is None or entry.confirm_frame is None:
+            return False
+        self._send_confirm(dst, entry.confirm_frame)
+        return True
+
     def cancel_pending(self, dst: int | None = None) -> int:
         """Stop retrying the frames to `dst` (all if None), without DeliveryFailed; returns how many."""
         return len(self._pending.cancel(dst))

@@ -46,6 +46,7 @@ class ResultCode(IntEnum):
     UNSUPPORTED = 4  # this robot cannot do it (no camera for ShowCam, cannot fly for LandOnTop)
     FAILED = 5  # started but could not finish (goal unreachable, partner lost)
     CANCELLED = 6  # stopped by a Stop or replaced by a newer motion command
+    TEMPORARILY_REJECTED = 7  # a command of higher priority holds what it needs; ask again later
 
 
 class Reason(IntEnum):
@@ -66,6 +67,9 @@ class Reason(IntEnum):
     BAD_REQUEST = 11  # the request cannot be carried out as given (a malformed inner message)
     UNKNOWN_TARGET = 12  # a ForwardMsg to our own or the broadcast address
     BUSY = 13  # no room to take it on now (all forwarding slots held); ask again later
+    MOTION_HELD = 14  # TEMPORARILY_REJECTED: a command of higher priority drives the robot
+    CAMERA_HELD = 15  # TEMPORARILY_REJECTED: a command of higher priority uses the camera
+    LASER_HELD = 16  # TEMPORARILY_REJECTED: a command of higher priority uses the laser
 
 
 class DataKind(IntEnum):

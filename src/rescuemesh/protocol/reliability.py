@@ -71,6 +71,7 @@ RESULT_TRANSITIONS: dict[ResultCode | None, frozenset[ResultCode]] = {
     ResultCode.UNSUPPORTED: _FINAL_NEXT,
     ResultCode.FAILED: _FINAL_NEXT,
     ResultCode.CANCELLED: _FINAL_NEXT,
+    ResultCode.TEMPORARILY_REJECTED: _FINAL_NEXT,
 }
 
 

@@ -30,6 +30,7 @@ class Behaviour:
         self.reason = Reason.NONE
         self.detail = ""
         self.paused = False
+        self._my_goal_id: int | None = None
 
     @property
     def finished(self) -> bool:
@@ -58,8 +59,14 @@ class Behaviour:
         raise NotImplementedError
 
     def halt(self, now: float) -> None:
-        """Stop driving: cancel the navigation goal."""
-        self.nav.cancel(now)
+        """Stop driving: cancel the navigation goal, if it is still this behaviour's (a behaviour
+        that replaces this one may have sent its own already)."""
+        if self.nav.goal_id is not None and self.nav.goal_id == self._my_goal_id:
+            self.nav.cancel(now)
+
+    def _send_nav_goal(self, goal: Pose2D, now: float, **options) -> int:
+        self._my_goal_id = self.nav.send_goal(goal, now, **options)
+        return self._my_goal_id
 
     def _finish(self, outcome: ResultCode, reason: Reason = Reason.NONE, detail: str = "") -> tuple[float, float]:
         self.outcome, self.reason, self.detail = outcome, reason, detail
@@ -74,10 +81,20 @@ class NavigateBehaviour(Behaviour):
     def __init__(self, nav: NavigateToPose, goal: Pose2D, now: float) -> None:
         super().__init__(nav)
         self.goal = goal
-        self.goal_id = nav.send_goal(goal, now)
+        self.goal_id = self._send_nav_goal(goal, now)
+        self._total_m: float | None = None  # the first remaining distance the navigator reports
 
     def _restart(self, now: float) -> None:
-        self.goal_id = self.nav.send_goal(self.goal, now)
+        self.goal_id = self._send_nav_goal(self.goal, now)
+
+    def progress(self) -> int:
+        """Percent of the path driven (0..99 while driving), from NavigateToPose feedback."""
+        feedback = self.nav.feedback
+        if feedback is None or feedback.goal_id != self.goal_id:
+            return 255 if self._total_m is None else 0
+        if self._total_m is None or feedback.distance_remaining_m > self._total_m:
+            self._total_m = max(feedback.distance_remaining_m, 1e-6)
+        return max(0, min(99, int(100 * (1 - feedback.distance_remaining_m / self._total_m))))
 
     def step(self, now, pose, scan):
         if self.paused:
@@ -154,8 +171,8 @@ class FollowBehaviour(Behaviour):
 
     def _send_goal(self, now: float) -> None:
         self._goal_target = self.target
-        self.nav.send_goal(self.target, now, stop_distance=self.distance_m, check_yaw=False,
-                           clear_radius=self.clear_radius_m)
+        self._send_nav_goal(self.target, now, stop_distance=self.distance_m, check_yaw=False,
+                            clear_radius=self.clear_radius_m)
 
     def step(self, now, pose, scan):
         silent = now - self.last_heard
@@ -205,6 +222,10 @@ def circle_waypoints(center: Pose2D, radius_m: float, count: int, start_near: Po
     return points
 
 
+#: A circle counts as done when at least this share of its (free) waypoints was reached.
+MIN_WAYPOINTS_REACHED = 0.9
+
+
 class MoveAroundBehaviour(Behaviour):
     """Circle a centre anticlockwise through evenly spaced waypoints; skip those inside obstacles."""
 
@@ -224,10 +245,20 @@ class MoveAroundBehaviour(Behaviour):
         return int(100 * self.current / max(1, len(self.waypoints)))
 
     def _send(self, now: float) -> int:
-        return self.nav.send_goal(self.waypoints[self.current].pose, now, check_yaw=False)
+        return self._send_nav_goal(self.waypoints[self.current].pose, now, check_yaw=False)
 
     def _restart(self, now: float) -> None:
         self._goal_id = self._send(now)
+
+    def _verdict(self) -> tuple[float, float]:
+        """DONE only if the circle was really driven: most waypoints reached, not merely tried."""
+        total = len(self.waypoints)
+        reached = total - len(self.unreached)
+        if reached == 0:
+            return self._finish(ResultCode.FAILED, Reason.BLOCKED, "no waypoint reachable")
+        if reached < MIN_WAYPOINTS_REACHED * total:
+            return self._finish(ResultCode.FAILED, Reason.STUCK, f"reached {reached} of {total} waypoints")
+        return self._finish(ResultCode.DONE)
 
     def _advance(self, now: float) -> bool:
         self.current += 1
@@ -249,8 +280,6 @@ class MoveAroundBehaviour(Behaviour):
             if result.status is GoalStatus.ABORTED:
                 self.unreached.append(self.waypoints[self.current])
             if not self._advance(now):
-                if len(self.unreached) == len(self.waypoints):
-                    return self._finish(ResultCode.FAILED, Reason.BLOCKED, "no waypoint reachable")
-                return self._finish(ResultCode.DONE)
+                return self._verdict()
             v_w = STOPPED
         return v_w

@@ -4,9 +4,11 @@ Owns: what the robot does with each protocol and network event (tables of handle
 PoseUpdate stream, heartbeats, link-loss pauses, ForwardMsg jobs, which behaviour runs. Must not
 know: the simulator, the transport, wall-clock time. It drives a `Body` and a network stack.
 
-Rules: every command and PoseUpdate gets a Confirm. Stop preempts everything. A newer motion
-command replaces the running one, whose commander gets a CANCELLED report. Commands not built
-yet are answered UNSUPPORTED. Link loss (paper IV.A, "stop command execution in case of
+Rules: every command and PoseUpdate gets a Confirm. Stop preempts everything. A motion command
+of equal or higher priority (robot/policy.py: sender's rank, then the type's level) replaces the
+running one, whose commander gets a CANCELLED report; a lower one is TEMPORARILY_REJECTED with
+the resource that is held. Goto and Return report IN_PROGRESS with their progress periodically.
+Commands not built yet are answered UNSUPPORTED. Link loss (paper IV.A, "stop command execution in case of
 disconnecting and failing to reconnect"): when the mesh layer reports a peer lost (missed
 heartbeats), a command shared with it pauses at once (a moving robot halts) and a reconnect
 window opens; heard again within it, the command resumes; if not, both sides end it FAILED
@@ -23,6 +25,8 @@ from rescuemesh.mesh import NeighbourFound, NeighbourLost, PeerRestarted, Transf
 from rescuemesh.nav import Costmap, NavigateToPose
 from rescuemesh.protocol import (
     CommandReceived,
+    Goto,
+    Return,
     ConfirmReceived,
     Data,
     DataReceived,
@@ -49,6 +53,7 @@ from rescuemesh.robot.behaviours import (
 )
 from rescuemesh.robot.forwarding import Forwarder
 from rescuemesh.robot.naming import robot_name
+from rescuemesh.robot.policy import MOTION_LEVEL, Priority, Rank, Resource, conflict, priority_of, resources_of
 
 
 @dataclass(frozen=True)
@@ -67,6 +72,13 @@ class BrainConfig:
     move_around_waypoints: int = 20
     forward_timeout_s: float = 30.0  # how long a ForwardMsg is held for an unreachable target
     forward_capacity: int = 8  # ForwardMsg jobs held at once
+    progress_period_s: float = 1.0  # Goto/Return/MoveAround send IN_PROGRESS this often (MAVLink pattern)
+    #: A final report (DONE, FAILED, CANCELLED after ACCEPTED) is not confirmed: it goes out this
+    #: many times, `final_report_spacing_s` apart, so that losing every copy is unlikely.
+    final_report_copies: int = 3
+    final_report_spacing_s: float = 0.25
+    ranks: dict = field(default_factory=dict)  # robot address -> Rank (a team file or scenario sets it)
+    base: Pose2D | None = None  # where Return goes; the runtime sets the start pose
 
 
 @dataclass(frozen=True, slots=True)
@@ -128,7 +140,13 @@ class _Running:
     commander: int | None = None  # address of the robot whose command started it; None: own mission
     seq: int | None = None
     msg_type: MessageType | None = None
+    priority: Priority = Priority(Rank.PEER, MOTION_LEVEL)
+    resources: Resource = Resource.MOTION
+    next_report_s: float = 0.0
 
+
+#: Commands whose receiver reports IN_PROGRESS with a percentage while it runs them.
+REPORTS_PROGRESS = frozenset({MessageType.GOTO, MessageType.RETURN, MessageType.MOVE_AROUND})
 
 #: Commands that move the receiver: when one is given up, the sender sends Stop in case it runs.
 MOTION_COMMANDS = frozenset({MessageType.FOLLOW, MessageType.MOVE_AROUND, MessageType.GOTO, MessageType.RETURN,
@@ -173,12 +191,13 @@ class RobotBrain:
         self.commands_failed = 0
         self.frames_rejected = 0
         self.lost_peers: dict[int, float] = {}  # peer with a shared command -> end of its reconnect window (s)
+        self._repeats: list[tuple[float, int, int, int]] = []  # (due s, commander, seq, copies left)
         self.forwarder = Forwarder(self.address, timeout_s=self.config.forward_timeout_s,
                                    capacity=self.config.forward_capacity)
         self._next_heartbeat_s = 0.0  # the first at once (peers learn our epoch from it), then on our phase
         self._heartbeat_phase_s = heartbeat_phase_s(self.address, self.config.heartbeat_period_s)
         self._handlers = {Follow: self._on_follow, Stop: self._on_stop, MoveAround: self._on_move_around,
-                          ForwardMsg: self._on_forward}
+                          ForwardMsg: self._on_forward, Goto: self._on_goto, Return: self._on_return}
         self._on_protocol = {
             CommandReceived: self._on_command, PoseUpdateReceived: self._on_pose_update,
             ConfirmReceived: self._on_confirm, DeliveryFailed: self._on_delivery_failed,
@@ -194,7 +213,19 @@ class RobotBrain:
 
     def navigate_to(self, goal: Pose2D, now: float) -> None:
         """Drive to `goal` on this robot's own account (replaces the running behaviour)."""
-        self._start(_Running(NavigateBehaviour(self.nav, goal, now), now), now)
+        own = Priority(self.rank_of(self.address), MOTION_LEVEL)
+        self._start(_Running(NavigateBehaviour(self.nav, goal, now), now, priority=own), now)
+
+    def rank_of(self, address: int) -> Rank:
+        return Rank(self.config.ranks.get(address, Rank.PEER))
+
+    def command_goto(self, peer: int, goal: Pose2D, now: float) -> int:
+        """Send Goto: `peer` drives to `goal` and reports progress, then DONE or FAILED."""
+        return self.send(peer, Goto(to_wire_pose(goal)), now)
+
+    def command_return(self, peer: int, now: float) -> int:
+        """Send Return: `peer` drives back to its base."""
+        return self.send(peer, Return(), now)
 
     def command_follow(self, peer: int, now: float) -> int:
         """Send Follow to `peer`; once it is ACCEPTED, stream this robot's pose to it."""
@@ -223,6 +254,7 @@ class RobotBrain:
         while (event := self.network.next_event()) is not None:
             self._on_network[type(event)](event, now)
         self._end_lost_links(now)
+        self._repeat_final_reports(now)
         self._forward(now)
         self._stream_poses(now)
         if now >= self._next_heartbeat_s:
@@ -240,7 +272,25 @@ class RobotBrain:
             velocity = behaviour.step(now, self.body.pose(), self.body.scan())
             if behaviour.finished:
                 self._end_running(now, behaviour.outcome, behaviour.reason, behaviour.detail)
+            else:
+                self._report_progress(now)
         self.body.set_velocity(*velocity)
+
+    def _repeat_final_reports(self, now: float) -> None:
+        due, self._repeats = [r for r in self._repeats if r[0] <= now], [r for r in self._repeats if r[0] > now]
+        for _, commander, seq, left in due:
+            if self.endpoint.repeat_report(commander, seq) and left > 1:
+                self._repeats.append((now + self.config.final_report_spacing_s, commander, seq, left - 1))
+
+    def _report_progress(self, now: float) -> None:
+        """MAVLink's long-running command pattern: IN_PROGRESS with a percentage, every period."""
+        running = self.running
+        if running.commander is None or running.seq is None or running.msg_type not in REPORTS_PROGRESS \
+                or now < running.next_report_s:
+            return
+        running.next_report_s = now + self.config.progress_period_s
+        self.endpoint.confirm(running.commander, running.seq, running.msg_type, ResultCode.IN_PROGRESS, now,
+                              progress=running.behaviour.progress())
 
     # ----- receiving -----
 
@@ -281,15 +331,52 @@ class RobotBrain:
         self._confirm(event, ResultCode.DONE, now)
         self._note(event.now, "stopped", f"by {robot_name(event.src)}")
 
+    def _admit(self, event: CommandReceived, now: float) -> bool:
+        """Whether the command may start now (policy.py); otherwise answer TEMPORARILY_REJECTED."""
+        running = self.running
+        if running is None:
+            return True
+        reason = conflict(event.command.TYPE, self.rank_of(event.src), running.resources, running.priority)
+        if reason is None:
+            return True
+        self._confirm(event, ResultCode.TEMPORARILY_REJECTED, now, reason=reason)
+        holder = "own mission" if running.commander is None else \
+            f"{running.msg_type.name} from {robot_name(running.commander)}"
+        self._note(now, "command_rejected", f"{type(event.command).__name__} from {robot_name(event.src)}: "
+                                            f"{reason.name} by {holder}")
+        return False
+
+    def _running_for(self, event: CommandReceived, behaviour: Behaviour, now: float) -> _Running:
+        return _Running(behaviour, now, event.src, event.seq, event.command.TYPE,
+                        priority_of(event.command.TYPE, self.rank_of(event.src)), resources_of(event.command.TYPE),
+                        next_report_s=now + self.config.progress_period_s)
+
+    def _on_goto(self, event: CommandReceived, now: float) -> None:
+        self._drive_to(event, from_wire_pose(event.command.frame), now)
+
+    def _on_return(self, event: CommandReceived, now: float) -> None:
+        base = self.config.base if self.config.base is not None else self.body.pose()
+        self._drive_to(event, base, now)
+
+    def _drive_to(self, event: CommandReceived, goal: Pose2D, now: float) -> None:
+        if not self._admit(event, now):
+            return
+        self._start(self._running_for(event, NavigateBehaviour(self.nav, goal, now), now), now)
+        self._confirm(event, ResultCode.ACCEPTED, now, progress=0)
+
     def _on_follow(self, event: CommandReceived, now: float) -> None:
+        if not self._admit(event, now):
+            return
         behaviour = FollowBehaviour(self.nav, event.src, from_wire_pose(event.command.frame), now,
                                     distance_m=self.config.follow_distance_m,
                                     partner_timeout_s=self.config.partner_timeout_s,
                                     partner_give_up_s=self.config.partner_give_up_s)
-        self._start(_Running(behaviour, now, event.src, event.seq, event.command.TYPE), now)
+        self._start(self._running_for(event, behaviour, now), now)
         self._confirm(event, ResultCode.ACCEPTED, now)
 
     def _on_move_around(self, event: CommandReceived, now: float) -> None:
+        if not self._admit(event, now):
+            return
         command: MoveAround = event.command
         center = from_wire_pose(command.center)
         points = circle_waypoints(center, command.radius_m, self.config.move_around_waypoints, self.body.pose())
@@ -303,7 +390,7 @@ class RobotBrain:
             self._note(now, "command_denied", "MoveAround: every waypoint is inside an obstacle")
             return
         behaviour = MoveAroundBehaviour(self.nav, free, skipped, now)
-        self._start(_Running(behaviour, now, event.src, event.seq, event.command.TYPE), now)
+        self._start(self._running_for(event, behaviour, now), now)
         self._confirm(event, ResultCode.ACCEPTED, now, progress=0)
 
     def _on_forward(self, event: CommandReceived, now: float) -> None:
@@ -507,6 +594,9 @@ class RobotBrain:
             self.endpoint.confirm(running.commander, running.seq, running.msg_type, result, now,
                                   progress=running.behaviour.progress() if result != ResultCode.DONE else 100,
                                   reason=code)
+            if self.config.final_report_copies > 1:
+                self._repeats.append((now + self.config.final_report_spacing_s, running.commander, running.seq,
+                                      self.config.final_report_copies - 1))
 
     def _note(self, now: float, kind: str, detail: str = "") -> None:
         self.log.append(BrainEvent(round(now, 3), self.name, kind, detail))

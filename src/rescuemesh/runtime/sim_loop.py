@@ -106,7 +106,8 @@ class SimRuntime:
             endpoint = Endpoint(address, EndpointConfig(reliability=reliability, initial_ttl=mesh.initial_ttl))
             stack = self.stacks[name] = NetworkStack(endpoint, MeshNode(address, mesh, self.sealer))
             nav = NavigateToPose(self.costmap)
-            self.brains[name] = RobotBrain(name, body, stack, nav, self.costmap, config.brain)
+            brain_config = config.brain if config.brain.base is not None else replace(config.brain, base=starts[name])
+            self.brains[name] = RobotBrain(name, body, stack, nav, self.costmap, brain_config)
             self.medium.attach(address, stack, _position_of(body))
         self.time = 0.0
         self.ticks = 0

@@ -6,6 +6,8 @@ Owns: the registry. Must not know: the command line, output files.
 from rescuemesh.scenarios.base import Scenario, ScenarioError, ScenarioOptions, Verdict
 from rescuemesh.scenarios.disconnect import DisconnectScenario
 from rescuemesh.scenarios.follow import FollowScenario
+from rescuemesh.scenarios.goto import GotoScenario, ReturnScenario
+from rescuemesh.scenarios.priority import PriorityScenario
 from rescuemesh.scenarios.move_around import MoveAroundScenario
 from rescuemesh.scenarios.relay import RelayScenario
 from rescuemesh.scenarios.spoof import SpoofScenario
@@ -13,7 +15,8 @@ from rescuemesh.scenarios.stop import StopScenario
 
 SCENARIOS: dict[str, type[Scenario]] = {
     cls.name: cls
-    for cls in (FollowScenario, StopScenario, MoveAroundScenario, RelayScenario, DisconnectScenario, SpoofScenario)
+    for cls in (FollowScenario, StopScenario, MoveAroundScenario, RelayScenario, DisconnectScenario, SpoofScenario,
+                GotoScenario, ReturnScenario, PriorityScenario)
 }
 
 

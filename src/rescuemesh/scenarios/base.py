@@ -90,6 +90,8 @@ class Scenario(abc.ABC):
 
     #: Whether --outage means anything to this scenario.
     takes_outage: ClassVar[bool] = False
+    #: The team of this scenario.
+    robots: ClassVar[tuple[str, ...]] = ROBOTS
 
     def __init__(self, options: ScenarioOptions, map_model: MapModel) -> None:
         self.options = options
@@ -116,13 +118,14 @@ class Scenario(abc.ABC):
 
     def starts(self) -> dict[str, Pose2D]:
         """Start poses: the defaults, overridden by --start."""
-        starts = {name: pose for name, pose in self.default_starts().items() if name in ROBOTS}
+        robots = self.robots
+        starts = {name: pose for name, pose in self.default_starts().items() if name in robots}
         for name in self.options.starts:
             robot_address(name)  # ValueError for a malformed robot name
-            if name not in ROBOTS:
-                raise ScenarioError(f"unknown robot {name!r}: this scenario has {', '.join(ROBOTS)}")
+            if name not in robots:
+                raise ScenarioError(f"unknown robot {name!r}: this scenario has {', '.join(robots)}")
         starts.update(self.options.starts)
-        missing = [name for name in ROBOTS if name not in starts]
+        missing = [name for name in robots if name not in starts]
         if missing:
             raise ScenarioError(f"map {self.map.name!r} has no start pose for {', '.join(missing)}: "
                                 f"give --start NAME=X,Y,YAW")

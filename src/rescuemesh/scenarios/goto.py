@@ -1,0 +1,142 @@
+"""Scenarios `goto` and `return` (paper Table III): robot_1 sends robot_2 a Goto for a pose in another
+room, and robot_2 reports progress, then DONE; in `return` robot_2 is then told Return and drives
+back to its base. Owns the two missions, their criteria and metrics. Must not know the simulator.
+"""
+
+from __future__ import annotations
+
+import math
+
+from rescuemesh.geometry import Pose2D
+from rescuemesh.protocol import ResultCode
+from rescuemesh.runtime import SimRuntime
+from rescuemesh.scenarios.base import CommandRequest, Scenario, ScenarioError, Verdict, no_collisions
+
+#: Where robot_2 is sent on the office: room_south, east of its table, facing north.
+OFFICE_GOTO = Pose2D(12.6, 2.4, math.pi / 2)
+XY_TOLERANCE_M, YAW_TOLERANCE_RAD = 0.15, 0.3
+
+
+def _angle(a: float, b: float) -> float:
+    return abs(math.remainder(a - b, 2 * math.pi))
+
+
+class GotoScenario(Scenario):
+    name = "goto"
+    summary = "robot_1 sends robot_2 a Goto for a pose in another room; progress, then DONE at the pose"
+    time_limit_s = 120.0
+    sender, mover = "robot_1", "robot_2"
+
+    def goal(self) -> Pose2D:
+        if self.options.goal is not None:
+            return self.options.goal
+        if self.map.name == "small_office":
+            return OFFICE_GOTO
+        raise ScenarioError(f"map {self.map.name!r} has no default Goto pose: give --goal X,Y")
+
+    def validate(self) -> None:
+        goal = self.goal()
+        if self.map.grid.is_occupied(goal.x, goal.y):
+            raise ScenarioError(f"goal ({goal.x:.2f}, {goal.y:.2f}) is inside an obstacle or off the map")
+
+    def __init__(self, options, map_model) -> None:
+        super().__init__(options, map_model)
+        self._goto: CommandRequest | None = None
+        self.goto_done_s: float | None = None
+
+    def _outcome(self, rt: SimRuntime, request: CommandRequest | None):
+        """The confirmed copy of a request: its OutgoingCommand, or None."""
+        if request is None:
+            return None
+        brain = rt.brain(self.sender)
+        return next((brain.outgoing[s] for s in request.seqs if brain.outgoing[s].result is not None
+                     and not brain.outgoing[s].failed), None)
+
+    def tick(self, rt: SimRuntime) -> None:
+        brain = rt.brain(self.sender)
+        if self._goto is None:
+            self._goto = CommandRequest(brain, self.mover, lambda peer, now: brain.command_goto(peer, self.goal(), now))
+        self._goto.poll(rt.time)
+        sent = self._outcome(rt, self._goto)
+        if self.goto_done_s is None and sent is not None and sent.result == ResultCode.DONE:
+            self.goto_done_s = rt.time
+
+    def finished(self, rt: SimRuntime) -> bool:
+        sent = self._outcome(rt, self._goto)
+        return self.goto_done_s is not None or (sent is not None and sent.result in (
+            ResultCode.FAILED, ResultCode.CANCELLED, ResultCode.DENIED, ResultCode.UNSUPPORTED)) \
+            or (self._goto is not None and self._goto.given_up)
+
+    def _progress_reports(self, rt: SimRuntime) -> int:
+        return sum(1 for e in rt.brain(self.sender).log if e.kind == "confirm" and "Goto" in e.detail
+                   and "IN_PROGRESS" in e.detail)
+
+    def evaluate(self, rt: SimRuntime) -> Verdict:
+        goal = self.goal()
+        end = rt.trajectories[self.mover][-1].pose
+        error_m, error_rad = end.distance_to(goal), _angle(end.yaw, goal.yaw)
+        sent = self._outcome(rt, self._goto)
+        reports = self._progress_reports(rt)
+        criteria = [
+            ("Goto confirmed DONE", sent is not None and sent.result == ResultCode.DONE),
+            (f"robot_2 within {XY_TOLERANCE_M} m and {YAW_TOLERANCE_RAD} rad of the pose "
+             f"({error_m:.3f} m, {error_rad:.3f} rad)", error_m <= XY_TOLERANCE_M and error_rad <= YAW_TOLERANCE_RAD),
+            (f"progress reports seen ({reports})", reports >= 1),
+            no_collisions(rt),
+        ]
+        metrics = {
+            "goal": [goal.x, goal.y],
+            "goal_region": self.map.region_of(goal.x, goal.y),
+            "goto_done_s": self.goto_done_s,
+            "final_error_m": round(error_m, 3),
+            "final_yaw_error_rad": round(error_rad, 3),
+            "progress_reports": reports,
+        }
+        return Verdict(all(ok for _, ok in criteria), criteria, metrics)
+
+
+class ReturnScenario(GotoScenario):
+    name = "return"
+    summary = "robot_2 is sent away with Goto, then told Return: it drives back to its base"
+    time_limit_s = 200.0
+
+    def __init__(self, options, map_model) -> None:
+        super().__init__(options, map_model)
+        self._return: CommandRequest | None = None
+        self.return_done_s: float | None = None
+
+    def tick(self, rt: SimRuntime) -> None:
+        super().tick(rt)
+        if self.goto_done_s is None:
+            return
+        brain = rt.brain(self.sender)
+        if self._return is None:
+            self._return = CommandRequest(brain, self.mover, brain.command_return)
+        self._return.poll(rt.time)
+        sent = self._outcome(rt, self._return)
+        if self.return_done_s is None and sent is not None and sent.result == ResultCode.DONE:
+            self.return_done_s = rt.time
+
+    def finished(self, rt: SimRuntime) -> bool:
+        if self.goto_done_s is None:
+            return super().finished(rt)
+        sent = self._outcome(rt, self._return)
+        return self.return_done_s is not None or (sent is not None and sent.result in (
+            ResultCode.FAILED, ResultCode.CANCELLED, ResultCode.DENIED)) or (
+            self._return is not None and self._return.given_up)
+
+    def evaluate(self, rt: SimRuntime) -> Verdict:
+        away = super().evaluate(rt)
+        base = rt.trajectories[self.mover][0].pose
+        end = rt.trajectories[self.mover][-1].pose
+        error_m, error_rad = end.distance_to(base), _angle(end.yaw, base.yaw)
+        sent = self._outcome(rt, self._return)
+        criteria = [away.criteria[0],
+                    ("Return confirmed DONE", sent is not None and sent.result == ResultCode.DONE),
+                    (f"robot_2 back at its base within {XY_TOLERANCE_M} m and {YAW_TOLERANCE_RAD} rad "
+                     f"({error_m:.3f} m, {error_rad:.3f} rad)",
+                     error_m <= XY_TOLERANCE_M and error_rad <= YAW_TOLERANCE_RAD),
+                    no_collisions(rt)]
+        metrics = dict(away.metrics, base=[round(base.x, 3), round(base.y, 3)], return_done_s=self.return_done_s,
+                       base_error_m=round(error_m, 3), base_yaw_error_rad=round(error_rad, 3))
+        return Verdict(all(ok for _, ok in criteria), criteria, metrics)
