@@ -1,7 +1,8 @@
 """The interface between a robot's brain and its body, and the sensor messages that cross it.
 
 Owns: Body (what the brain may ask of a body), FlyingBody (what more a flying one offers), RobotKind,
-FlightPhase, LandingTarget, LaserScan (sensor_msgs/LaserScan in spirit).
+FlightPhase, LandingTarget, LaserScan (sensor_msgs/LaserScan in spirit), CameraImage
+(sensor_msgs/Image in spirit) and NoRendererError.
 Must not know: what implements a body (MuJoCo, a remote process, a ROS robot).
 """
 
@@ -52,6 +53,43 @@ class LaserScan:
         return np.stack([self.origin.x + r[ok] * np.cos(a), self.origin.y + r[ok] * np.sin(a)], axis=1)
 
 
+class NoRendererError(RuntimeError):
+    """The body has a camera but cannot produce an image: no OpenGL context could be created (no EGL,
+    no display) or rendering is disabled (MUJOCO_GL=disable). A brain answers FAILED "no renderer"."""
+
+
+@dataclass(frozen=True, eq=False)
+class CameraImage:
+    """One RGB frame of a forward camera.
+
+    `rgb` is (height, width, 3) uint8, row 0 at the top and column 0 at the left as seen by the
+    camera. `origin` is the camera's pose in the map frame when the frame was taken, at `stamp` s:
+    x, y of the optical centre in m and the yaw of the optical axis in rad; `z` its height above
+    the floor in m. `fov_h` is the horizontal field of view in rad (the optical axis is horizontal).
+    """
+
+    stamp: float
+    origin: Pose2D
+    z: float
+    fov_h: float
+    rgb: np.ndarray
+
+    def __post_init__(self) -> None:
+        rgb = self.rgb
+        if not (isinstance(rgb, np.ndarray) and rgb.dtype == np.uint8 and rgb.ndim == 3 and rgb.shape[2] == 3):
+            raise ValueError(f"CameraImage.rgb must be an (H, W, 3) uint8 array, got {getattr(rgb, 'shape', rgb)!r}")
+
+    @property
+    def width(self) -> int:
+        """Image width in pixels."""
+        return int(self.rgb.shape[1])
+
+    @property
+    def height(self) -> int:
+        """Image height in pixels."""
+        return int(self.rgb.shape[0])
+
+
 class Body(abc.ABC):
     """What a robot brain may read from and command to its body.
 
@@ -77,6 +115,13 @@ class Body(abc.ABC):
     @abc.abstractmethod
     def scan(self) -> LaserScan | None:
         """The latest complete laser sweep, or None before the first one."""
+
+    def camera(self) -> CameraImage | None:
+        """What the forward camera sees now, or None when this body has no camera (the default).
+
+        Raises NoRendererError when the body has a camera but no image can be rendered.
+        """
+        return None
 
     @abc.abstractmethod
     def set_velocity(self, linear: float, angular: float) -> None:

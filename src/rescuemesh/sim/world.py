@@ -1,4 +1,4 @@
-"""World: a MuJoCo office with TurtleBots, stepped in whole physics steps on simulated time.
+"""World: a MuJoCo office with TurtleBots (and quadrotors), stepped in whole physics steps on simulated time.
 
 Owns: the MjModel/MjData, the step loop, the lidar schedule, odometry commits and collision
 episodes. Must not know: brains, navigation, the radio or the wall clock (the runtime calls step).
@@ -8,6 +8,9 @@ schedules never drift. Physics runs one mj_step at a time so that the chassis co
 read after every step; everything else happens at fixed step counts, independent of how the caller
 slices `step()`: odometry commits every ODOMETRY_PERIOD_S, lidar sweeps every 1 / rate_hz (the
 first at time 0). Same inputs and the same call sequence give bit-identical trajectories.
+A quadrotor's autopilot runs before every physics step (200 Hz at the 5 ms step): its attitude loop
+needs that rate, and it sees the state the physics will integrate from. Worlds without quadrotors
+run the original loop untouched.
 """
 
 from __future__ import annotations
@@ -18,11 +21,13 @@ from collections.abc import Mapping
 import mujoco
 import numpy as np
 
+from rescuemesh.body import RobotKind
 from rescuemesh.geometry import Pose2D
 from rescuemesh.maps.model import MapModel
 from rescuemesh.sim import mjcf
 from rescuemesh.sim.body import SimBody
 from rescuemesh.sim.lidar import Lidar, LidarConfig
+from rescuemesh.sim.quadrotor import SimQuadrotor, quadrotor_part
 
 MAX_PHYSICS_DT = 0.005  # s; larger steps make the wheel contacts and the collision counting coarse
 ODOMETRY_PERIOD_S = 0.05  # s between odometry commits (a Kobuki reports odometry at 50 Hz)
@@ -40,9 +45,12 @@ class World:
     - `lidar`: the lidar of every robot.
     - `seed`: an int or a numpy Generator for the lidar noise (the only randomness; the physics is
       deterministic).
+    - `kinds`: robot name -> RobotKind for robots that are not GROUND (TurtleBots); a FLYING robot is
+      a quadrotor (sim/quadrotor.py) resting on the floor at its start pose, rotors off, no lidar.
 
-    Attributes: `bodies` (name -> SimBody, in the order of `starts`), `model` and `data` (MuJoCo,
-    for viewers and diagnostics; do not step them directly), `xml` (the MJCF text).
+    Attributes: `bodies` (name -> SimBody, or SimQuadrotor for a flying robot, in the order of
+    `starts`), `model` and `data` (MuJoCo, for viewers and diagnostics; do not step them directly),
+    `xml` (the MJCF text). Every TurtleBot has a top plate (`top_height` m) a quadrotor can land on.
     """
 
     def __init__(
@@ -53,6 +61,7 @@ class World:
         physics_dt: float = 0.005,
         lidar: LidarConfig = LidarConfig(),
         seed: int | np.random.Generator = 0,
+        kinds: Mapping[str, RobotKind] | None = None,
     ) -> None:
         if not (math.isfinite(physics_dt) and 0.0 < physics_dt <= MAX_PHYSICS_DT):
             raise ValueError(f"physics_dt must be in (0, {MAX_PHYSICS_DT}] s, got {physics_dt}")
@@ -63,22 +72,40 @@ class World:
                 raise ValueError(f"robot name {name!r} must be a non-empty string without XML special characters")
             if map_model.grid.is_occupied(pose.x, pose.y):
                 raise ValueError(f"start of {name} at ({pose.x:g}, {pose.y:g}) m is inside an obstacle or off the map")
+        kinds = dict(kinds or {})
+        for name, kind in kinds.items():
+            if name not in starts or not isinstance(kind, RobotKind):
+                raise ValueError(f"kinds: {name!r} -> {kind!r} must name a robot in starts and give a RobotKind")
+        self.kinds: dict[str, RobotKind] = {n: kinds.get(n, RobotKind.GROUND) for n in starts}
+        ground = [n for n in starts if self.kinds[n] is RobotKind.GROUND]
+        flying = [n for n in starts if self.kinds[n] is RobotKind.FLYING]
         self.map_model = map_model
         self.physics_dt = float(physics_dt)
         self.lidar_config = lidar
-        self.xml = mjcf.world_xml(map_model, starts, self.physics_dt)
+        parts = [quadrotor_part(n, starts[n]) for n in flying]
+        self.xml = mjcf.world_xml(map_model, {n: starts[n] for n in ground}, self.physics_dt, parts)
         self.model = mujoco.MjModel.from_xml_string(self.xml)
         self.data = mujoco.MjData(self.model)
         rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
 
         names = list(starts)
-        self.bodies: dict[str, SimBody] = {n: SimBody(n, self.model, self.data, starts[n]) for n in names}
-        child_rngs = rng.spawn(len(names))
-        self._lidars = {
-            n: Lidar(self.model, self.data, self.bodies[n].body_id, lidar, child_rngs[i]) for i, n in enumerate(names)
+        plates = {self.model.geom(mjcf.plate_name(n)).id: n for n in ground}
+        self._flyers = [
+            SimQuadrotor(n, self.model, self.data, lambda: self.time, self.physics_dt, plates) for n in flying
+        ]
+        flyer = {q.name: q for q in self._flyers}
+        self.bodies: dict[str, SimBody | SimQuadrotor] = {
+            n: flyer[n] if n in flyer else SimBody(n, self.model, self.data, starts[n]) for n in names
         }
-        self._index = {n: i for i, n in enumerate(names)}
-        adr = [int(self.model.sensor_adr[self.model.sensor(mjcf.bump_sensor_name(n)).id]) for n in names]
+        for n in ground:
+            self.bodies[n].top_height = mjcf.PLATE_TOP
+        child_rngs = rng.spawn(len(ground))
+        self._lidars = {
+            n: Lidar(self.model, self.data, self.bodies[n].body_id, lidar, child_rngs[i]) for i, n in enumerate(ground)
+        }
+        order = ground + flying  # the order of the bump sensors (mjcf.world_xml)
+        self._index = {n: order.index(n) for n in names}
+        adr = [int(self.model.sensor_adr[self.model.sensor(mjcf.bump_sensor_name(n)).id]) for n in order]
         if adr != list(range(adr[0], adr[0] + len(adr))):
             raise RuntimeError("bump sensors are not contiguous in sensordata")  # guards the view below
         self._bump = self.data.sensordata[adr[0] : adr[0] + len(names)]  # view: contacts of each chassis
@@ -87,7 +114,7 @@ class World:
         self._scan_every = max(1, round(1.0 / (lidar.rate_hz * self.physics_dt)))
         self._odom_every = max(1, round(ODOMETRY_PERIOD_S / self.physics_dt))
         self._gap_steps = max(1, round(COLLISION_GAP_S / self.physics_dt))
-        self._collisions = [0] * len(names)
+        self._collisions = [0] * len(names)  # indexed like self._bump
         self._in_episode = [False] * len(names)
         self._last_touch = [0] * len(names)
         self._any_episode = False
@@ -121,8 +148,20 @@ class World:
         return {n: self._collisions[i] for n, i in self._index.items()}
 
     def contacts_now(self, name: str) -> bool:
-        """True while `name`'s chassis touches a wall or another robot's chassis (after the last step)."""
+        """True while `name`'s chassis touches a wall or another robot's chassis (after the last step).
+
+        For a quadrotor: while its frame (not its feet) touches anything.
+        """
         return bool(self._bump[self._index[name]] > 0.0)
+
+    def top_offset(self, flyer: str, robot: str) -> float:
+        """Horizontal distance in m from quadrotor `flyer`'s centre to the centre of `robot`'s top plate."""
+        q = self.bodies[flyer]
+        if not isinstance(q, SimQuadrotor) or self.kinds[robot] is not RobotKind.GROUND:
+            raise ValueError(f"top_offset needs a flying robot and a ground robot, got {flyer!r} and {robot!r}")
+        plate = self.data.geom_xpos[self.model.geom(mjcf.plate_name(robot)).id]
+        x, y, _ = q.position_3d()
+        return math.hypot(x - float(plate[0]), y - float(plate[1]))
 
     def step(self, duration_s: float) -> None:
         """Advance simulated time by `duration_s` s, rounded to a whole number of physics steps.
@@ -158,7 +197,21 @@ class World:
     def _physics(self, n: int) -> None:
         """`n` physics steps, reading the chassis contact sensors after each."""
         m, d, bump = self.model, self.data, self._bump
+        if self._flyers:
+            return self._physics_flying(n)
         for _ in range(n):
+            mujoco.mj_step(m, d)
+            self._steps += 1
+            if self._any_episode or bump.any():
+                self._update_episodes()
+
+    def _physics_flying(self, n: int) -> None:
+        """As `_physics`, with every quadrotor's autopilot stepped before each physics step."""
+        m, d, bump, flyers, dt = self.model, self.data, self._bump, self._flyers, self.physics_dt
+        for _ in range(n):
+            now = self._steps * dt
+            for q in flyers:
+                q.control(now)
             mujoco.mj_step(m, d)
             self._steps += 1
             if self._any_episode or bump.any():
@@ -181,5 +234,6 @@ class World:
         """One lidar sweep per robot at the current time (kinematics refreshed for current qpos)."""
         mujoco.mj_kinematics(self.model, self.data)
         now = self.time
-        for name, body in self.bodies.items():
-            body.set_scan(self._lidars[name].sweep(now, body.pose()))
+        for name, lidar in self._lidars.items():
+            body = self.bodies[name]
+            body.set_scan(lidar.sweep(now, body.pose()))
