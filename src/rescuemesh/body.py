@@ -162,8 +162,9 @@ class FlyingBody(Body):
     `set_velocity(linear, angular)` still works, as a planar twist at the altitude held when it started
     (so the ground behaviours can steer a drone), with two rules that make the brain's every-tick call
     harmless: (0, 0) only stops a twist already running (it does not cancel a `fly_to` or a landing),
-    and any twist is ignored while the rotors are off (a landed drone stays landed). `pose()` is the
-    projection on the floor (x, y, yaw); `scan()` may be None (no lidar).
+    and any twist is ignored while the rotors are off (a landed drone stays landed). A non-zero twist
+    with the rotors running replaces a `fly_to` or a landing. `pose()` is the projection on the floor
+    (x, y, yaw); `scan()` may be None (no lidar).
     """
 
     kind: RobotKind = RobotKind.FLYING
@@ -199,7 +200,8 @@ class FlyingBody(Body):
 
     @abc.abstractmethod
     def rotors_off(self) -> None:
-        """Stop the rotors now (in the air it falls: meant for after landing or an emergency)."""
+        """Stop the rotors now (in the air it falls: meant for an emergency). During a landing's
+        TOUCHDOWN (rotors already off) it lets the landing finish."""
 
     @abc.abstractmethod
     def landed_on(self) -> str | None:

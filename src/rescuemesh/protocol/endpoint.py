@@ -174,7 +174,8 @@ class Endpoint:
         rel = self.config.reliability
         timeout = rel.ack_timeout_s + rel.per_hop_timeout_s * (self._path_hops.get(dst, 1) - 1)
         if frame_bytes > MAX_CONTROL_FRAME_BYTES:  # segmented: 16 frame bytes per segment (docs/mesh.md)
-            timeout += rel.per_segment_timeout_s * (-(-(frame_bytes - 6) // 16))
+            segments = -(-(frame_bytes - 6) // 16)  # each crosses every hop: the time grows with both
+            timeout += rel.per_segment_timeout_s * segments * self._path_hops.get(dst, 1)
         return timeout
 
     def send_heartbeat(self, now: float, active_command: int = 0) -> None:

@@ -7,10 +7,11 @@ Must not know: when the world steps or sweeps the lidar (the World calls in), no
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import mujoco
 
-from rescuemesh.body import Body, LaserScan
+from rescuemesh.body import Body, CameraImage, LaserScan
 from rescuemesh.geometry import Pose2D, quaternion_to_yaw, wrap_angle
 from rescuemesh.sim import mjcf
 
@@ -43,6 +44,7 @@ class SimBody(Body):
         self.body_id: int = model.body(mjcf.base_name(name)).id
         self._command = (0.0, 0.0)
         self._scan: LaserScan | None = None
+        self._camera: Callable[[], CameraImage] | None = None
         # Odometry committed at the last integration point: pose and the wheel angles there.
         self._odom = (start.x, start.y, start.yaw)
         self._odom_wheels = self._wheel_angles()
@@ -67,6 +69,13 @@ class SimBody(Body):
     def scan(self) -> LaserScan | None:
         """The latest lidar sweep (taken by the World at the lidar rate), or None before the first."""
         return self._scan
+
+    def camera(self) -> CameraImage | None:
+        """What the forward camera sees now (rendered on demand; sim/camera.py), or None without a camera.
+
+        Raises NoRendererError when no OpenGL context can be made (docs/sensors.md).
+        """
+        return self._camera() if self._camera is not None else None
 
     def set_velocity(self, linear: float, angular: float) -> None:
         """Command `linear` m/s along x and `angular` rad/s about z, each clamped to its limit.
@@ -100,6 +109,10 @@ class SimBody(Body):
 
     def set_scan(self, scan: LaserScan) -> None:
         self._scan = scan
+
+    def attach_camera(self, capture: Callable[[], CameraImage] | None) -> None:
+        """Give the body a camera: `capture()` renders the current view (called by the World)."""
+        self._camera = capture
 
     def _wheel_angles(self) -> tuple[float, float]:
         return (float(self._data.qpos[self._wheel_qpos[0]]), float(self._data.qpos[self._wheel_qpos[1]]))

@@ -87,15 +87,22 @@ def allocation(params: QuadrotorParams) -> tuple[tuple[float, ...], ...]:
 def mix(params: QuadrotorParams, collective: float, torque: Vec3) -> Thrusts:
     """Rotor thrusts in N for a collective thrust (N) and body torques (N m), each within [0, max].
 
-    When a rotor would leave its range the yaw torque is dropped first (roll and pitch keep the drone
-    upright; yaw can wait), then the thrusts are clipped.
+    Yaw gives way first (roll and pitch keep the drone upright; yaw can wait), as in PX4's mixer: the
+    yaw torque is scaled down to the largest part that keeps every rotor in range; what still does
+    not fit is clipped. (At hover a 0.5 kg drone has only 0.075 N m of yaw torque to spare.)
     """
     m, hi = allocation(params), params.max_rotor_thrust
     tx, ty, tz = torque
-    f = [r[0] * collective + r[1] * tx + r[2] * ty + r[3] * tz for r in m]
-    if min(f) < 0.0 or max(f) > hi:
-        f = [r[0] * collective + r[1] * tx + r[2] * ty for r in m]
-    return tuple(min(max(v, 0.0), hi) for v in f)  # type: ignore[return-value]
+    base = [r[0] * collective + r[1] * tx + r[2] * ty for r in m]
+    scale = 1.0  # of the yaw torque: rotor i gets base_i + scale * dz_i, which must stay in [0, hi]
+    for b, r in zip(base, m):
+        dz = r[3] * tz
+        if dz > 0.0:
+            scale = min(scale, (hi - b) / dz)
+        elif dz < 0.0:
+            scale = min(scale, b / -dz)
+    scale = max(scale, 0.0)
+    return tuple(min(max(b + r[3] * tz * scale, 0.0), hi) for b, r in zip(base, m))  # type: ignore[return-value]
 
 
 # ---------------------------------------------------------------------------------- cascade
@@ -134,8 +141,9 @@ class FlightGains:
     vel_p_xy: float = 4.0  # 1/s: velocity error -> acceleration
     vel_p_z: float = 6.0  # 1/s
     vel_i_xy: float = 0.4  # 1/s^2
-    vel_i_z: float = 2.0  # 1/s^2: trims the hover thrust when the mass is not what the model says
+    vel_i_z: float = 4.0  # 1/s^2: trims the hover thrust when the mass is not what the model says
     integral_limit: float = 2.0  # m/s^2, the most the integrators may add to the acceleration
+    integrate_below: float = 0.05  # m/s: integrate an axis only while this slow relative to the feed-forward
     max_speed_xy: float = 1.0  # m/s
     max_climb: float = 1.0  # m/s
     max_descent: float = 0.8  # m/s
@@ -152,20 +160,31 @@ def _clamp(v: float, lo: float, hi: float) -> float:
 
 
 def acceleration_setpoint(state: FlightState, sp: Setpoint, integral: Vec3, gains: FlightGains) -> tuple[Vec3, Vec3]:
-    """The outer loops: (acceleration setpoint in m/s^2, velocity error in m/s for the integrator)."""
+    """The outer loops: (acceleration setpoint in m/s^2, velocity error in m/s to integrate).
+
+    The error to integrate is zero on an axis (horizontal, vertical) whose velocity setpoint was clamped
+    or that moves faster than `integrate_below` relative to the feed-forward: climbs, crossings and the
+    braking at their end do not charge the integrator, which trims only steady errors (a hover sag
+    from a wrong mass, however large), so it leaves no slow tail after each manoeuvre.
+    """
     g = gains
     (x, y, z), (vx, vy, vz) = state.position, state.velocity
     (px, py, pz), (fx, fy, fz) = sp.position, sp.velocity
     ux, uy = fx + g.pos_p_xy * (px - x), fy + g.pos_p_xy * (py - y)
     speed = math.hypot(ux, uy)
-    if speed > g.max_speed_xy:
+    clamped_xy = speed > g.max_speed_xy
+    if clamped_xy:
         ux, uy = ux * g.max_speed_xy / speed, uy * g.max_speed_xy / speed
-    uz = _clamp(fz + g.pos_p_z * (pz - z), -g.max_descent, g.max_climb)
+    uz_free = fz + g.pos_p_z * (pz - z)
+    uz = _clamp(uz_free, -g.max_descent, g.max_climb)
     ex, ey, ez = ux - vx, uy - vy, uz - vz
     ax, ay, az = sp.acceleration
-    return ((ax + g.vel_p_xy * ex + g.vel_i_xy * integral[0],
+    accel = (ax + g.vel_p_xy * ex + g.vel_i_xy * integral[0],
              ay + g.vel_p_xy * ey + g.vel_i_xy * integral[1],
-             az + g.vel_p_z * ez + g.vel_i_z * integral[2]), (ex, ey, ez))
+             az + g.vel_p_z * ez + g.vel_i_z * integral[2])
+    steady_xy = not clamped_xy and math.hypot(vx - fx, vy - fy) < g.integrate_below
+    steady_z = uz == uz_free and abs(vz - fz) < g.integrate_below
+    return accel, (ex if steady_xy else 0.0, ey if steady_xy else 0.0, ez if steady_z else 0.0)
 
 
 def thrust_vector(params: QuadrotorParams, accel: Vec3, gains: FlightGains) -> Vec3:
@@ -244,9 +263,9 @@ class FlightController:
         p, g = self.params, self.gains
         accel, err = acceleration_setpoint(state, sp, self.integral, g)
         if integrate:
-            ki = (g.vel_i_xy, g.vel_i_xy, g.vel_i_z)
+            limits = [g.integral_limit / k if k > 0.0 else 0.0 for k in (g.vel_i_xy, g.vel_i_xy, g.vel_i_z)]
             self.integral = tuple(  # type: ignore[assignment]
-                _clamp(i + e * dt, -g.integral_limit / k, g.integral_limit / k) for i, e, k in zip(self.integral, err, ki))
+                _clamp(i + e * dt, -lim, lim) for i, e, lim in zip(self.integral, err, limits))
         force = thrust_vector(p, accel, g)
         axes = rotation(state.quaternion)
         collective = _clamp(_dot(force, axes[2]), 0.0, 4.0 * p.max_rotor_thrust)
@@ -338,7 +357,7 @@ class LandingController:
         x, y, z = state.position
         low = z < config.cruise_altitude - config.climb_first_below
         self._climb: Vec3 | None = (x, y, config.cruise_altitude) if low else None
-        self._since = now  # when the present phase (or, in ALIGN, the present run of alignment) began
+        self._since = now  # when the present phase began
         self._aligned_since: float | None = None
         self._touch_since: float | None = None
         self._z_setpoint = z
@@ -470,6 +489,11 @@ class Autopilot:
         return self.phase not in (FlightPhase.OFF, FlightPhase.LANDED, FlightPhase.TOUCHDOWN)
 
     @property
+    def idle(self) -> bool:
+        """Rotors off with nothing to fly: `step` would return zero thrust without reading the state."""
+        return self._landing is None and not self.rotors_running
+
+    @property
     def setpoint(self) -> Setpoint | None:
         """The setpoint flown at the last step (None: rotors off)."""
         return self._setpoint
@@ -519,9 +543,11 @@ class Autopilot:
         self.phase = self._landing.phase
 
     def rotors_off(self) -> None:
-        """Rotors off now; LANDED stays LANDED, anything else becomes OFF."""
-        if self.phase is not FlightPhase.LANDED:
-            self.phase = FlightPhase.OFF
+        """Rotors off now; anything but a landing's TOUCHDOWN (rotors already off, LANDED to follow) or
+        LANDED becomes OFF."""
+        if self.phase in (FlightPhase.TOUCHDOWN, FlightPhase.LANDED):
+            return
+        self.phase = FlightPhase.OFF
         self._waypoints, self._twist, self._landing, self._setpoint = [], None, None, None
         self.controller.reset()
 

@@ -158,8 +158,10 @@ def world_xml(map_model: MapModel, starts: Mapping[str, Pose2D], physics_dt: flo
     </default>
   </default>
   <asset>
-    <texture name="sky" type="skybox" builtin="gradient" rgb1="0.8 0.86 0.93" rgb2="0.45 0.52 0.62" width="64" height="64"/>
-    <texture name="floor" type="2d" builtin="checker" rgb1="0.42 0.45 0.5" rgb2="0.34 0.37 0.42" width="64" height="64"/>
+    <texture name="sky" type="skybox" builtin="gradient" rgb1="0.8 0.86 0.93" rgb2="0.45 0.52 0.62"
+             width="64" height="64"/>
+    <texture name="floor" type="2d" builtin="checker" rgb1="0.42 0.45 0.5" rgb2="0.34 0.37 0.42"
+             width="64" height="64"/>
     <material name="floor" texture="floor" texrepeat="2 2" texuniform="true"/>
   </asset>
   <worldbody>

@@ -126,14 +126,21 @@ class SimQuadrotor(FlyingBody):
         self._feet = frozenset(int(g) for g in range(model.ngeom) if model.geom_bodyid[g] == gear and model.geom_contype[g])
         self.body_id: int = model.body(mjcf.base_name(name)).id
         self.autopilot = autopilot or Autopilot(PARAMS)
+        self._live = False  # rotor commands may be non-zero
         self.cruise_altitude = self.autopilot.landing_config.cruise_altitude
 
     # ------------------------------------------------------------ for the World
 
     def control(self, now: float) -> None:
         """One autopilot step at `now` s: rotor thrusts for the next physics step (called by the World)."""
+        if self.autopilot.idle:  # rotors off, nothing to fly: zero them once, then skip the state read
+            if self._live:
+                self._data.ctrl[self._ctrl] = 0.0
+                self._live = False
+            return
         touching = self._data.sensordata[self._feet_adr] > 0.0
         self._data.ctrl[self._ctrl] = self.autopilot.step(now, self.state(), touching, self._dt)
+        self._live = True
 
     def commit_odometry(self) -> None:
         """Nothing to commit: odometry is the (visual-inertial, here true) state itself."""
@@ -142,6 +149,11 @@ class SimQuadrotor(FlyingBody):
         q = self._data.qpos[self._qpos : self._qpos + 7].tolist()
         v = self._data.qvel[self._qvel : self._qvel + 6].tolist()
         return FlightState((q[0], q[1], q[2]), (v[0], v[1], v[2]), (q[3], q[4], q[5], q[6]), (v[3], v[4], v[5]))
+
+    @property
+    def thrusts(self) -> tuple[float, float, float, float]:
+        """Rotor thrust commands in N (rotors 1..4) for the coming physics step; all 0 with the rotors off."""
+        return tuple(self._data.ctrl[self._ctrl].tolist())  # type: ignore[return-value]
 
     def touching(self) -> bool:
         """True while the feet touch anything (floor, a plate, a wall)."""

@@ -26,6 +26,7 @@ from rescuemesh.geometry import Pose2D
 from rescuemesh.maps.model import MapModel
 from rescuemesh.sim import mjcf
 from rescuemesh.sim.body import SimBody
+from rescuemesh.sim.camera import CameraConfig, Cameras
 from rescuemesh.sim.lidar import Lidar, LidarConfig
 from rescuemesh.sim.quadrotor import SimQuadrotor, quadrotor_part
 
@@ -47,6 +48,8 @@ class World:
       deterministic).
     - `kinds`: robot name -> RobotKind for robots that are not GROUND (TurtleBots); a FLYING robot is
       a quadrotor (sim/quadrotor.py) resting on the floor at its start pose, rotors off, no lidar.
+    - `camera`: the forward camera of every TurtleBot (sim/camera.py), rendered only when a body's
+      `camera()` is called; None: no cameras (`camera()` returns None).
 
     Attributes: `bodies` (name -> SimBody, or SimQuadrotor for a flying robot, in the order of
     `starts`), `model` and `data` (MuJoCo, for viewers and diagnostics; do not step them directly),
@@ -62,6 +65,7 @@ class World:
         lidar: LidarConfig = LidarConfig(),
         seed: int | np.random.Generator = 0,
         kinds: Mapping[str, RobotKind] | None = None,
+        camera: CameraConfig | None = CameraConfig(),
     ) -> None:
         if not (math.isfinite(physics_dt) and 0.0 < physics_dt <= MAX_PHYSICS_DT):
             raise ValueError(f"physics_dt must be in (0, {MAX_PHYSICS_DT}] s, got {physics_dt}")
@@ -103,6 +107,10 @@ class World:
         self._lidars = {
             n: Lidar(self.model, self.data, self.bodies[n].body_id, lidar, child_rngs[i]) for i, n in enumerate(ground)
         }
+        self.cameras = Cameras(self.model, self.data, ground, camera) if camera is not None else None
+        if self.cameras is not None:
+            for n in ground:
+                self.bodies[n].attach_camera(lambda n=n: self.cameras.capture(n, self.time))
         order = ground + flying  # the order of the bump sensors (mjcf.world_xml)
         self._index = {n: order.index(n) for n in names}
         adr = [int(self.model.sensor_adr[self.model.sensor(mjcf.bump_sensor_name(n)).id]) for n in order]
@@ -159,9 +167,14 @@ class World:
         q = self.bodies[flyer]
         if not isinstance(q, SimQuadrotor) or self.kinds[robot] is not RobotKind.GROUND:
             raise ValueError(f"top_offset needs a flying robot and a ground robot, got {flyer!r} and {robot!r}")
-        plate = self.data.geom_xpos[self.model.geom(mjcf.plate_name(robot)).id]
+        plate = self.bodies[robot].pose()  # the plate is centred on the base (its tilt moves it < 1 mm)
         x, y, _ = q.position_3d()
-        return math.hypot(x - float(plate[0]), y - float(plate[1]))
+        return math.hypot(x - plate.x, y - plate.y)
+
+    def close(self) -> None:
+        """Free the cameras' OpenGL context, if one was made (a later image makes a new one)."""
+        if self.cameras is not None:
+            self.cameras.close()
 
     def step(self, duration_s: float) -> None:
         """Advance simulated time by `duration_s` s, rounded to a whole number of physics steps.
