@@ -80,7 +80,8 @@ def test_real_process_prints_no_traceback(tmp_path):
 def test_scenarios_lists_every_scenario_with_one_line_each(capsys):
     assert main(["scenarios"]) == 0
     lines = capsys.readouterr().out.splitlines()
-    names = ("follow", "stop", "move-around", "relay", "disconnect", "spoof", "goto", "return", "priority")
+    names = ("follow", "stop", "move-around", "relay", "disconnect", "spoof", "goto", "return", "priority",
+             "show-scan", "show-cam")
     assert [line.split()[0] for line in lines] == list(names)
 
 

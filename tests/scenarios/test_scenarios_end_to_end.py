@@ -18,7 +18,8 @@ def run(tmp_path, *argv):
 def assert_common(result, code):
     assert code == 0, [c for c in result["criteria"] if not c["ok"]]
     assert result["success"] is True
-    assert result["protocol"]["max_frame_bytes"] <= 20  # no segmented frame in these scenarios
+    segmented = result["network"]["segment_transmissions"] > 0
+    assert result["protocol"]["max_frame_bytes"] <= (29 if segmented else 20)  # a segment: one network PDU
     assert result["protocol"]["commands_failed"] == 0 or result["settings"]["loss"] > 0
     for robot in result["robots"].values():
         assert robot["collisions"] == 0
@@ -207,3 +208,23 @@ def test_priority_rejects_the_peer_and_lets_the_operator_preempt(tmp_path):
     m = result["metrics"]
     assert m["peer_answer"] == ["TEMPORARILY_REJECTED", "MOTION_HELD"]
     assert m["follow_end"] == ["CANCELLED", "REPLACED"] and m["operator_answer"][0] in ("ACCEPTED", "IN_PROGRESS")
+
+
+def test_show_scan_moves_to_see_the_spot_and_saves_each_scan_drawn_on_the_map(tmp_path):
+    code, result = run(tmp_path, "show-scan")
+    assert_common(result, code)
+    m = result["metrics"]
+    assert m["scans_received"] == 3 and m["robot_2_moved_m"] >= 0.5 and all(0 < b <= 1600 for b in m["bytes"])
+    assert sorted(p.name for p in (tmp_path / "scans").iterdir()) == ["scan_1.png", "scan_2.png", "scan_3.png"]
+
+
+def test_show_cam_saves_jpeg_images_that_show_the_scene(tmp_path):
+    from rescuemesh.robot.sensor_codec import decode_image, image_is_informative
+
+    code, result = run(tmp_path, "show-cam")
+    assert_common(result, code)
+    images = sorted((tmp_path / "images").iterdir())
+    assert len(images) == 3 and result["metrics"]["images_received"] == 3
+    for path in images:
+        data = path.read_bytes()
+        assert data[:2] == b"\xff\xd8" and len(data) <= 1600 and image_is_informative(decode_image(data))

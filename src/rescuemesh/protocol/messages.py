@@ -70,6 +70,9 @@ class Reason(IntEnum):
     MOTION_HELD = 14  # TEMPORARILY_REJECTED: a command of higher priority drives the robot
     CAMERA_HELD = 15  # TEMPORARILY_REJECTED: a command of higher priority uses the camera
     LASER_HELD = 16  # TEMPORARILY_REJECTED: a command of higher priority uses the laser
+    NO_RENDERER = 17  # ShowCam: this robot cannot render camera images (no GL)
+    NO_VIEWPOINT = 18  # ShowScan/ShowCam: no reachable spot sees the requested position
+    NO_SENSOR = 19  # UNSUPPORTED: this robot has no camera / no laser for ShowCam / ShowScan
 
 
 class DataKind(IntEnum):

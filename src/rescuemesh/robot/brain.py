@@ -17,16 +17,20 @@ window opens; heard again within it, the command resumes; if not, both sides end
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass, field
 
-from rescuemesh.body import Body
+from rescuemesh.body import Body, NoRendererError
 from rescuemesh.geometry import Pose2D
 from rescuemesh.mesh import NeighbourFound, NeighbourLost, PeerRestarted, TransferComplete, TransferFailed
 from rescuemesh.nav import Costmap, NavigateToPose
 from rescuemesh.protocol import (
     CommandReceived,
+    DataKind,
     Goto,
     Return,
+    ShowCam,
+    ShowScan,
     ConfirmReceived,
     Data,
     DataReceived,
@@ -54,6 +58,8 @@ from rescuemesh.robot.behaviours import (
 from rescuemesh.robot.forwarding import Forwarder
 from rescuemesh.robot.naming import robot_name
 from rescuemesh.robot.policy import MOTION_LEVEL, Priority, Rank, Resource, conflict, priority_of, resources_of
+from rescuemesh.robot.sensor_codec import choose_jpeg, data_budget_bytes, encode_scan
+from rescuemesh.robot.show import ShowBehaviour
 
 
 @dataclass(frozen=True)
@@ -79,6 +85,11 @@ class BrainConfig:
     final_report_spacing_s: float = 0.25
     ranks: dict = field(default_factory=dict)  # robot address -> Rank (a team file or scenario sets it)
     base: Pose2D | None = None  # where Return goes; the runtime sets the start pose
+    has_laser: bool = True  # capabilities: ShowScan needs a laser, ShowCam a camera
+    has_camera: bool = True
+    laser_range_m: float = 5.0  # a viewpoint for ShowScan is at most this far from the position
+    camera_range_m: float = 4.0  # ... for ShowCam
+    show_timeout_s: float = 120.0  # an open-ended ShowScan/ShowCam (count 0) ends after this
 
 
 @dataclass(frozen=True, slots=True)
@@ -146,7 +157,8 @@ class _Running:
 
 
 #: Commands whose receiver reports IN_PROGRESS with a percentage while it runs them.
-REPORTS_PROGRESS = frozenset({MessageType.GOTO, MessageType.RETURN, MessageType.MOVE_AROUND})
+REPORTS_PROGRESS = frozenset({MessageType.GOTO, MessageType.RETURN, MessageType.MOVE_AROUND,
+                              MessageType.SHOW_SCAN, MessageType.SHOW_CAM})
 
 #: Commands that move the receiver: when one is given up, the sender sends Stop in case it runs.
 MOTION_COMMANDS = frozenset({MessageType.FOLLOW, MessageType.MOVE_AROUND, MessageType.GOTO, MessageType.RETURN,
@@ -192,12 +204,15 @@ class RobotBrain:
         self.frames_rejected = 0
         self.lost_peers: dict[int, float] = {}  # peer with a shared command -> end of its reconnect window (s)
         self._repeats: list[tuple[float, int, int, int]] = []  # (due s, commander, seq, copies left)
+        #: Bulk data received (scans, images): (time s, source, kind, command seq, bytes, hops).
+        self.received_data: deque[tuple[float, int, DataKind, int, bytes, int]] = deque(maxlen=64)
         self.forwarder = Forwarder(self.address, timeout_s=self.config.forward_timeout_s,
                                    capacity=self.config.forward_capacity)
         self._next_heartbeat_s = 0.0  # the first at once (peers learn our epoch from it), then on our phase
         self._heartbeat_phase_s = heartbeat_phase_s(self.address, self.config.heartbeat_period_s)
         self._handlers = {Follow: self._on_follow, Stop: self._on_stop, MoveAround: self._on_move_around,
-                          ForwardMsg: self._on_forward, Goto: self._on_goto, Return: self._on_return}
+                          ForwardMsg: self._on_forward, Goto: self._on_goto, Return: self._on_return,
+                          ShowScan: self._on_show, ShowCam: self._on_show}
         self._on_protocol = {
             CommandReceived: self._on_command, PoseUpdateReceived: self._on_pose_update,
             ConfirmReceived: self._on_confirm, DeliveryFailed: self._on_delivery_failed,
@@ -270,6 +285,7 @@ class RobotBrain:
         if self.running is not None:
             behaviour = self.running.behaviour
             velocity = behaviour.step(now, self.body.pose(), self.body.scan())
+            self._send_captures(now)
             if behaviour.finished:
                 self._end_running(now, behaviour.outcome, behaviour.reason, behaviour.detail)
             else:
@@ -314,6 +330,7 @@ class RobotBrain:
 
     def _on_data(self, event: DataReceived, now: float) -> None:
         self.endpoint.confirm(event.src, event.seq, MessageType.DATA, ResultCode.ACCEPTED, now)
+        self.received_data.append((event.now, event.src, event.kind, event.ref_seq, event.data, event.hops))
         self._note(event.now, "data_received", f"{event.kind.name} {len(event.data)} B from {robot_name(event.src)}")
 
     def _confirm(self, event, result: ResultCode, now: float, progress: int = 255,
@@ -350,6 +367,56 @@ class RobotBrain:
         return _Running(behaviour, now, event.src, event.seq, event.command.TYPE,
                         priority_of(event.command.TYPE, self.rank_of(event.src)), resources_of(event.command.TYPE),
                         next_report_s=now + self.config.progress_period_s)
+
+    def _on_show(self, event: CommandReceived, now: float) -> None:
+        command = event.command
+        camera = isinstance(command, ShowCam)
+        if not (self.config.has_camera if camera else self.config.has_laser):
+            self._confirm(event, ResultCode.UNSUPPORTED, now, reason=Reason.NO_SENSOR)
+            return
+        if not self._admit(event, now):
+            return
+        requester = event.src
+        capture = (lambda: self._capture_image(requester)) if camera else (lambda: self._capture_scan(requester))
+        behaviour = ShowBehaviour(self.nav, self.costmap, "show-cam" if camera else "show-scan",
+                                  (command.frame.x, command.frame.y),
+                                  self.config.camera_range_m if camera else self.config.laser_range_m,
+                                  command.period_s, command.count, capture, now, self.body.pose(),
+                                  timeout_s=self.config.show_timeout_s)
+        if behaviour.finished:  # no viewpoint at all
+            self._confirm(event, ResultCode.FAILED, now, reason=behaviour.reason)
+            self._note(now, "command_failed", f"{type(command).__name__}: {behaviour.detail}")
+            return
+        running = self._running_for(event, behaviour, now)
+        running.resources |= Resource.MOTION  # it may drive to a viewpoint and turn toward it
+        self._start(running, now)
+        self._confirm(event, ResultCode.ACCEPTED, now, progress=0)
+
+    def _budget(self, requester: int) -> int:
+        return data_budget_bytes(self.network.hops_to(requester) or 1)
+
+    def _capture_scan(self, requester: int):
+        scan = self.body.scan()
+        if scan is None:
+            return None
+        return DataKind.LASER_SCAN, encode_scan(scan, max_bytes=self._budget(requester))
+
+    def _capture_image(self, requester: int):
+        image = self.body.camera()
+        if image is None:
+            raise NoRendererError("this robot's body has no camera")
+        return DataKind.IMAGE_JPEG, choose_jpeg(image.rgb, max_bytes=self._budget(requester)).data
+
+    def _send_captures(self, now: float) -> None:
+        running = self.running
+        outbox = getattr(running.behaviour, "outbox", None)
+        if not outbox:
+            return
+        for kind, data in outbox:
+            if running.commander is not None and running.seq is not None:
+                self.endpoint.send_data(running.commander, kind, running.seq, data, now)
+                self._note(now, "data_sent", f"{kind.name} {len(data)} B to {robot_name(running.commander)}")
+        outbox.clear()
 
     def _on_goto(self, event: CommandReceived, now: float) -> None:
         self._drive_to(event, from_wire_pose(event.command.frame), now)

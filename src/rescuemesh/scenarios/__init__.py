@@ -10,13 +10,14 @@ from rescuemesh.scenarios.goto import GotoScenario, ReturnScenario
 from rescuemesh.scenarios.priority import PriorityScenario
 from rescuemesh.scenarios.move_around import MoveAroundScenario
 from rescuemesh.scenarios.relay import RelayScenario
+from rescuemesh.scenarios.show import ShowCamScenario, ShowScanScenario
 from rescuemesh.scenarios.spoof import SpoofScenario
 from rescuemesh.scenarios.stop import StopScenario
 
 SCENARIOS: dict[str, type[Scenario]] = {
     cls.name: cls
     for cls in (FollowScenario, StopScenario, MoveAroundScenario, RelayScenario, DisconnectScenario, SpoofScenario,
-                GotoScenario, ReturnScenario, PriorityScenario)
+                GotoScenario, ReturnScenario, PriorityScenario, ShowScanScenario, ShowCamScenario)
 }
 
 

@@ -141,6 +141,10 @@ class Scenario(abc.ABC):
                                     f"or off the map")
         return starts
 
+    def write_files(self, rt: SimRuntime, out_dir) -> list:
+        """Files of the scenario's own beside result.json and the plots (received scans, images)."""
+        return []
+
     @abc.abstractmethod
     def tick(self, rt: SimRuntime) -> None:
         """The mission script, run after every control step."""

@@ -62,6 +62,7 @@ def run_scenario(name: str, options: ScenarioOptions, *, map_path: Path | None =
                                        title=_title(scenario, verdict), metrics=verdict.metrics))
         files.append(plot_timeline(rt, out_dir / "timeline.png", title=_title(scenario, verdict),
                                    metrics=verdict.metrics))
+        files.extend(scenario.write_files(rt, out_dir))
     return RunOutcome(result, verdict, rt, files)
 
 

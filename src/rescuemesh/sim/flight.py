@@ -505,8 +505,9 @@ class Autopilot:
         x, y, z = state.position
         yaw = yaw_of(state.quaternion) if yaw is None else yaw
         self._waypoints = [goal]
-        if z < goal[2] - self.landing_config.climb_first_below and math.hypot(goal[0] - x, goal[1] - y) > self.arrive_radius:
-            self._waypoints.insert(0, (x, y, goal[2]))
+        low = z < goal[2] - self.landing_config.climb_first_below
+        if low and math.hypot(goal[0] - x, goal[1] - y) > self.arrive_radius:
+            self._waypoints.insert(0, (x, y, goal[2]))  # climb vertically first
         self._setpoint = Setpoint(self._waypoints[0], yaw)
         self._twist = self._landing = None
         self.phase = FlightPhase.FLY

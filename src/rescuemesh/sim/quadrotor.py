@@ -56,30 +56,34 @@ def quadrotor_part(name: str, start: Pose2D, params: QuadrotorParams = PARAMS) -
     rgba = f'rgba="{f(*DRONE_RGBA)}"'
     rotors = params.rotors
     arms = "\n".join(
-        f'      <geom name={q(f"{name}/arm_{i}")} type="capsule" size="{ARM_RADIUS}" fromto="{f(0, 0, 0, x, y, 0)}" {geom} {rgba}/>\n'
-        f'      <geom name={q(f"{name}/motor_{i}")} type="cylinder" size="{f(0.014, 0.012)}" pos="{f(x, y, 0.008)}" {geom}'
-        f' rgba="0.15 0.15 0.15 1"/>\n'
-        f'      <geom name={q(f"{name}/prop_{i}")} type="cylinder" size="{f(PROP_RADIUS, 0.002)}" pos="{f(x, y, ROTOR_HEIGHT)}"'
-        f' {geom} rgba="0.8 0.8 0.8 0.35"/>\n'
+        f'      <geom name={q(f"{name}/arm_{i}")} type="capsule" size="{ARM_RADIUS}"'
+        f' fromto="{f(0, 0, 0, x, y, 0)}" {geom} {rgba}/>\n'
+        f'      <geom name={q(f"{name}/motor_{i}")} type="cylinder" size="{f(0.014, 0.012)}"'
+        f' pos="{f(x, y, 0.008)}" {geom} rgba="0.15 0.15 0.15 1"/>\n'
+        f'      <geom name={q(f"{name}/prop_{i}")} type="cylinder" size="{f(PROP_RADIUS, 0.002)}"'
+        f' pos="{f(x, y, ROTOR_HEIGHT)}" {geom} rgba="0.8 0.8 0.8 0.35"/>\n'
         f'      <site name={q(rotor_name(name, i))} pos="{f(x, y, ROTOR_HEIGHT)}" size="0.005"/>'
         for i, (x, y, _) in enumerate(rotors, start=1)
     )
     foot_z = -(params.gear_height - FOOT_RADIUS)
-    feet = "\n".join(
-        f'        <geom type="capsule" size="0.004" fromto="{f(0.6 * sx * FOOT_SPREAD, 0.6 * sy * FOOT_SPREAD, -HULL_HALF[2], sx * FOOT_SPREAD, sy * FOOT_SPREAD, foot_z)}"'
-        f' contype="0" conaffinity="0" mass="0" group="0" rgba="0.15 0.15 0.15 1"/>\n'
-        f'        <geom name={q(f"{name}/foot_{i}")} type="sphere" size="{FOOT_RADIUS}" pos="{f(sx * FOOT_SPREAD, sy * FOOT_SPREAD, foot_z)}"'
-        f' {geom} condim="3" friction="{FOOT_FRICTION} 0.005 0.0001" rgba="0.1 0.1 0.1 1"/>'
-        for i, (sx, sy) in enumerate(((1, 1), (-1, 1), (-1, -1), (1, -1)), start=1)
-    )
+    feet = []
+    for i, (sx, sy) in enumerate(((1, 1), (-1, 1), (-1, -1), (1, -1)), start=1):
+        fx, fy = sx * FOOT_SPREAD, sy * FOOT_SPREAD
+        feet.append(
+            f'        <geom type="capsule" size="0.004" fromto="{f(0.6 * fx, 0.6 * fy, -HULL_HALF[2], fx, fy, foot_z)}"'
+            f' contype="0" conaffinity="0" mass="0" group="0" rgba="0.15 0.15 0.15 1"/>\n'
+            f'        <geom name={q(f"{name}/foot_{i}")} type="sphere" size="{FOOT_RADIUS}" pos="{f(fx, fy, foot_z)}"'
+            f' {geom} condim="3" friction="{FOOT_FRICTION} 0.005 0.0001" rgba="0.1 0.1 0.1 1"/>'
+        )
     qw, qz = math.cos(0.5 * start.yaw), math.sin(0.5 * start.yaw)
-    body = f"""    <body name={q(mjcf.base_name(name))} pos="{f(start.x, start.y, params.gear_height)}" quat="{f(qw, 0, 0, qz)}">
+    placement = f'pos="{f(start.x, start.y, params.gear_height)}" quat="{f(qw, 0, 0, qz)}"'
+    body = f"""    <body name={q(mjcf.base_name(name))} {placement}>
       <freejoint name={q(f"{name}/root")}/>
       <inertial pos="0 0 0" mass="{params.mass}" diaginertia="{f(*params.inertia)}"/>
       <geom name={q(f"{name}/hull")} type="box" size="{f(*HULL_HALF)}" {geom} {rgba}/>
 {arms}
       <body name={q(gear_name(name))}>
-{feet}
+{chr(10).join(feet)}
       </body>
     </body>"""
     hi = params.max_rotor_thrust
@@ -123,7 +127,9 @@ class SimQuadrotor(FlyingBody):
         self._ctrl = slice(ids[0], ids[0] + 4)
         self._feet_adr = int(model.sensor_adr[model.sensor(feet_sensor_name(name)).id])
         gear = model.body(gear_name(name)).id
-        self._feet = frozenset(int(g) for g in range(model.ngeom) if model.geom_bodyid[g] == gear and model.geom_contype[g])
+        self._feet = frozenset(
+            int(g) for g in range(model.ngeom) if model.geom_bodyid[g] == gear and model.geom_contype[g]
+        )
         self.body_id: int = model.body(mjcf.base_name(name)).id
         self.autopilot = autopilot or Autopilot(PARAMS)
         self._live = False  # rotor commands may be non-zero
