@@ -363,7 +363,7 @@ def test_flipping_any_bit_is_detected(prefix):
         pytest.param("43 24 01 02 0007 00 00", MalformedPayload, id="data-short"),
         pytest.param("43 23 01 02 0007 0001 1001 000000000000", MalformedPayload, id="segment-ack-base-4097"),
         pytest.param("43 23 01 FF 0007 0001 0001 000000000000", MalformedPayload, id="segment-ack-broadcast"),
-        pytest.param("43 20 02 01 0003 0007 01 05 FF 20", MalformedPayload, id="confirm-reason-32"),
+        pytest.param("43 20 02 01 0003 0007 01 05 FF 40", MalformedPayload, id="confirm-reason-64"),
         pytest.param("43 22 01 FF 0009 20 03", MalformedPayload, id="heartbeat-active-confirm"),
         pytest.param("43 22 01 FF 0009 01 10", MalformedPayload, id="heartbeat-init-ttl-16"),
         pytest.param("43 22 01 FF 0009 01", MalformedPayload, id="heartbeat-short"),

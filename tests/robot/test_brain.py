@@ -21,12 +21,12 @@ def two_robots(**kw):
     return Team({"robot_1": Pose2D(3.0, 6.0), "robot_2": Pose2D(1.5, 6.0)}, **kw)
 
 
-@pytest.mark.parametrize("command", [LandOnTop(Pose(1, 1, 0.3, 0))])
-def test_commands_not_built_yet_are_answered_unsupported_and_do_nothing(command):
+def test_land_on_top_asked_of_a_ground_robot_is_unsupported_and_does_nothing():
     team = two_robots()
-    seq = team.brains["robot_1"].send(TWO, command, 0.0)
+    seq = team.brains["robot_1"].send(TWO, LandOnTop(Pose(1, 1, 0.4, 0)), 0.0)
     team.run(1.0)
-    assert team.brains["robot_1"].outgoing[seq].result == ResultCode.UNSUPPORTED
+    sent = team.brains["robot_1"].outgoing[seq]
+    assert (sent.result, sent.reason) == (ResultCode.UNSUPPORTED, Reason.NOT_FLYING)
     assert team.brains["robot_2"].behaviour == "idle"
     assert team.bodies["robot_2"].pose() == Pose2D(1.5, 6.0)
 

@@ -81,7 +81,7 @@ def test_scenarios_lists_every_scenario_with_one_line_each(capsys):
     assert main(["scenarios"]) == 0
     lines = capsys.readouterr().out.splitlines()
     names = ("follow", "stop", "move-around", "relay", "disconnect", "spoof", "goto", "return", "priority",
-             "show-scan", "show-cam")
+             "show-scan", "show-cam", "land-on-top")
     assert [line.split()[0] for line in lines] == list(names)
 
 

@@ -228,3 +228,11 @@ def test_show_cam_saves_jpeg_images_that_show_the_scene(tmp_path):
     for path in images:
         data = path.read_bytes()
         assert data[:2] == b"\xff\xd8" and len(data) <= 1600 and image_is_informative(decode_image(data))
+
+
+def test_land_on_top_the_drone_lands_on_robot_2_and_is_carried(tmp_path):
+    code, result = run(tmp_path, "land-on-top")
+    assert_common(result, code)
+    m = result["metrics"]
+    assert m["landed_on"] == "robot_2" and m["landing_error_m"] <= 0.08
+    assert m["carried_distance_m"] >= 0.95 * m["carrier_drove_m"] >= 1.8

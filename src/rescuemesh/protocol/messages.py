@@ -73,6 +73,7 @@ class Reason(IntEnum):
     NO_RENDERER = 17  # ShowCam: this robot cannot render camera images (no GL)
     NO_VIEWPOINT = 18  # ShowScan/ShowCam: no reachable spot sees the requested position
     NO_SENSOR = 19  # UNSUPPORTED: this robot has no camera / no laser for ShowCam / ShowScan
+    NOT_FLYING = 20  # UNSUPPORTED: LandOnTop needs a flying robot; or the sender has no top to land on
 
 
 class DataKind(IntEnum):

@@ -20,7 +20,7 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass, field
 
-from rescuemesh.body import Body, NoRendererError
+from rescuemesh.body import Body, NoRendererError, RobotKind
 from rescuemesh.geometry import Pose2D
 from rescuemesh.mesh import NeighbourFound, NeighbourLost, PeerRestarted, TransferComplete, TransferFailed
 from rescuemesh.nav import Costmap, NavigateToPose
@@ -28,6 +28,7 @@ from rescuemesh.protocol import (
     CommandReceived,
     DataKind,
     Goto,
+    LandOnTop,
     Return,
     ShowCam,
     ShowScan,
@@ -59,6 +60,7 @@ from rescuemesh.robot.forwarding import Forwarder
 from rescuemesh.robot.naming import robot_name
 from rescuemesh.robot.policy import MOTION_LEVEL, Priority, Rank, Resource, conflict, priority_of, resources_of
 from rescuemesh.robot.sensor_codec import choose_jpeg, data_budget_bytes, encode_scan
+from rescuemesh.robot.landing import LandOnTopBehaviour
 from rescuemesh.robot.show import ShowBehaviour
 
 
@@ -156,9 +158,12 @@ class _Running:
     next_report_s: float = 0.0
 
 
+#: Commands after which the sender streams its pose (PoseUpdates) to the receiver until it ends.
+STREAMED = frozenset({MessageType.FOLLOW, MessageType.LAND_ON_TOP})
+
 #: Commands whose receiver reports IN_PROGRESS with a percentage while it runs them.
 REPORTS_PROGRESS = frozenset({MessageType.GOTO, MessageType.RETURN, MessageType.MOVE_AROUND,
-                              MessageType.SHOW_SCAN, MessageType.SHOW_CAM})
+                              MessageType.SHOW_SCAN, MessageType.SHOW_CAM, MessageType.LAND_ON_TOP})
 
 #: Commands that move the receiver: when one is given up, the sender sends Stop in case it runs.
 MOTION_COMMANDS = frozenset({MessageType.FOLLOW, MessageType.MOVE_AROUND, MessageType.GOTO, MessageType.RETURN,
@@ -212,7 +217,7 @@ class RobotBrain:
         self._heartbeat_phase_s = heartbeat_phase_s(self.address, self.config.heartbeat_period_s)
         self._handlers = {Follow: self._on_follow, Stop: self._on_stop, MoveAround: self._on_move_around,
                           ForwardMsg: self._on_forward, Goto: self._on_goto, Return: self._on_return,
-                          ShowScan: self._on_show, ShowCam: self._on_show}
+                          ShowScan: self._on_show, ShowCam: self._on_show, LandOnTop: self._on_land_on_top}
         self._on_protocol = {
             CommandReceived: self._on_command, PoseUpdateReceived: self._on_pose_update,
             ConfirmReceived: self._on_confirm, DeliveryFailed: self._on_delivery_failed,
@@ -233,6 +238,13 @@ class RobotBrain:
 
     def rank_of(self, address: int) -> Rank:
         return Rank(self.config.ranks.get(address, Rank.PEER))
+
+    def command_land_on_top(self, peer: int, now: float) -> int:
+        """Send LandOnTop: flying robot `peer` lands on this robot's top (its height in the frame's z);
+        once it is ACCEPTED this robot streams its pose to it, as for Follow."""
+        pose = self.body.pose()
+        top = self.body.top_height or 0.0
+        return self.send(peer, LandOnTop(Pose(pose.x, pose.y, top, pose.yaw)), now)
 
     def command_goto(self, peer: int, goal: Pose2D, now: float) -> int:
         """Send Goto: `peer` drives to `goal` and reports progress, then DONE or FAILED."""
@@ -345,6 +357,8 @@ class RobotBrain:
         self.streams.clear()
         self._end_running(now, ResultCode.CANCELLED, Reason.STOPPED, f"stopped by {robot_name(event.src)}")
         self.body.set_velocity(0.0, 0.0)
+        if self.body.kind is RobotKind.FLYING:
+            self.body.hold()  # hover where it is (on a top with its rotors off it stays there)
         self._confirm(event, ResultCode.DONE, now)
         self._note(event.now, "stopped", f"by {robot_name(event.src)}")
 
@@ -418,6 +432,18 @@ class RobotBrain:
                 self._note(now, "data_sent", f"{kind.name} {len(data)} B to {robot_name(running.commander)}")
         outbox.clear()
 
+    def _on_land_on_top(self, event: CommandReceived, now: float) -> None:
+        frame = event.command.frame
+        if self.body.kind is not RobotKind.FLYING or frame.z <= 0.0:
+            self._confirm(event, ResultCode.UNSUPPORTED, now, reason=Reason.NOT_FLYING)
+            return
+        if not self._admit(event, now):
+            return
+        behaviour = LandOnTopBehaviour(self.nav, self.body, event.src, from_wire_pose(frame), frame.z, now,
+                                       partner_give_up_s=self.config.partner_give_up_s)
+        self._start(self._running_for(event, behaviour, now), now)
+        self._confirm(event, ResultCode.ACCEPTED, now, progress=0)
+
     def _on_goto(self, event: CommandReceived, now: float) -> None:
         self._drive_to(event, from_wire_pose(event.command.frame), now)
 
@@ -473,8 +499,10 @@ class RobotBrain:
     def _on_pose_update(self, event: PoseUpdateReceived, now: float) -> None:
         self._forget_reused_seq(event)
         running = self.running
-        if running is not None and isinstance(running.behaviour, FollowBehaviour) \
-                and running.behaviour.leader == event.src:
+        streamed = (isinstance(running.behaviour, FollowBehaviour) and running.behaviour.leader == event.src) or \
+            (isinstance(running.behaviour, LandOnTopBehaviour) and running.behaviour.carrier == event.src) \
+            if running is not None else False
+        if streamed:
             running.behaviour.on_pose_update(from_wire_pose(event.pose), event.now)
             self._confirm(event, ResultCode.ACCEPTED, now)
         else:
@@ -504,10 +532,10 @@ class RobotBrain:
         why = f" ({event.reason.name})" if event.reason is not Reason.NONE else ""
         hops = f", {event.hops} hops" if event.hops > 1 else ""
         self._note(event.now, "confirm", f"{sent.kind} by {robot_name(event.src)}: {event.result.name}{why}{hops}")
-        if sent.msg_type is MessageType.FOLLOW and event.solicited and event.result == ResultCode.ACCEPTED \
+        if sent.msg_type in STREAMED and event.solicited and event.result == ResultCode.ACCEPTED \
                 and not self._stopped_since(event.src, sent.sent_s):
             self.streams[event.src] = _PoseStream(event.src, event.ref_seq, next_send_s=now, last_confirmed_s=now)
-        elif sent.msg_type is MessageType.FOLLOW and event.result in (ResultCode.CANCELLED, ResultCode.FAILED):
+        elif sent.msg_type in STREAMED and event.result in (ResultCode.CANCELLED, ResultCode.FAILED, ResultCode.DONE):
             stream = self.streams.get(event.src)
             if stream is not None and stream.follow_seq == event.ref_seq:
                 del self.streams[event.src]

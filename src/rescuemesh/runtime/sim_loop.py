@@ -58,6 +58,7 @@ class SimConfig:
     ack_timeout_s: float = 0.15
     max_sends: int = 3
     brain: BrainConfig = field(default_factory=BrainConfig)
+    kinds: dict = field(default_factory=dict)  # robot name -> RobotKind (default: ground)
     mesh: MeshConfig = field(default_factory=lambda: MeshConfig(relay_retransmit_count=TEAM_RELAY_RETRANSMIT_COUNT))
 
     def __post_init__(self) -> None:
@@ -86,7 +87,7 @@ class SimRuntime:
         config = self.config
         rng = np.random.default_rng(config.seed)
         radio_seed, world_seed = int(rng.integers(2**63)), int(rng.integers(2**31))
-        self.world = World(map_model, starts, physics_dt=config.physics_dt, seed=world_seed)
+        self.world = World(map_model, starts, physics_dt=config.physics_dt, seed=world_seed, kinds=config.kinds)
         self.channel = make_channel(config.radio.value, grid=map_model.grid, seed=radio_seed, **config.radio_params)
         self.medium = SimMedium(self.channel, radio_seed, extra_loss=config.loss, record=True)
         reliability = ReliabilityConfig(ack_timeout_s=config.ack_timeout_s, max_sends=config.max_sends)

@@ -7,6 +7,7 @@ from rescuemesh.scenarios.base import Scenario, ScenarioError, ScenarioOptions, 
 from rescuemesh.scenarios.disconnect import DisconnectScenario
 from rescuemesh.scenarios.follow import FollowScenario
 from rescuemesh.scenarios.goto import GotoScenario, ReturnScenario
+from rescuemesh.scenarios.land_on_top import LandOnTopScenario
 from rescuemesh.scenarios.priority import PriorityScenario
 from rescuemesh.scenarios.move_around import MoveAroundScenario
 from rescuemesh.scenarios.relay import RelayScenario
@@ -17,7 +18,8 @@ from rescuemesh.scenarios.stop import StopScenario
 SCENARIOS: dict[str, type[Scenario]] = {
     cls.name: cls
     for cls in (FollowScenario, StopScenario, MoveAroundScenario, RelayScenario, DisconnectScenario, SpoofScenario,
-                GotoScenario, ReturnScenario, PriorityScenario, ShowScanScenario, ShowCamScenario)
+                GotoScenario, ReturnScenario, PriorityScenario, ShowScanScenario, ShowCamScenario,
+                LandOnTopScenario)
 }
 
 
