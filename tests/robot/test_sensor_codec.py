@@ -393,7 +393,7 @@ def test_an_image_at_its_budget_reaches_the_requester_within_3_s_per_hop(hops: i
     assert elapsed is not None, f"{len(payload)} bytes did not cross {hops} hop(s) within {3 * hops} s"
 
 
-@pytest.mark.parametrize(("hops", "expected"), [(1, 1600), (2, 1600), (3, 400), (7, 400)])
+@pytest.mark.parametrize(("hops", "expected"), [(1, 1200), (2, 1200), (3, 400), (7, 400)])
 def test_budgets_by_hops(hops: int, expected: int) -> None:
     assert data_budget_bytes(hops) == expected
 

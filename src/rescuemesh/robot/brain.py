@@ -59,7 +59,7 @@ from rescuemesh.robot.behaviours import (
 from rescuemesh.robot.forwarding import Forwarder
 from rescuemesh.robot.naming import robot_name
 from rescuemesh.robot.policy import MOTION_LEVEL, Priority, Rank, Resource, conflict, priority_of, resources_of
-from rescuemesh.robot.sensor_codec import choose_jpeg, data_budget_bytes, encode_scan
+from rescuemesh.robot.sensor_codec import STREAM_BYTES_PER_S, choose_jpeg, data_budget_bytes, encode_scan
 from rescuemesh.robot.landing import LandOnTopBehaviour
 from rescuemesh.robot.show import ShowBehaviour
 
@@ -391,7 +391,10 @@ class RobotBrain:
         if not self._admit(event, now):
             return
         requester = event.src
-        capture = (lambda: self._capture_image(requester)) if camera else (lambda: self._capture_scan(requester))
+        budget = data_budget_bytes(self.network.hops_to(requester) or 1)
+        if command.count != 1:  # a stream must not send more than the link carries in one period
+            budget = min(budget, max(200, int(STREAM_BYTES_PER_S * command.period_s)))
+        capture = (lambda: self._capture_image(budget)) if camera else (lambda: self._capture_scan(budget))
         behaviour = ShowBehaviour(self.nav, self.costmap, "show-cam" if camera else "show-scan",
                                   (command.frame.x, command.frame.y),
                                   self.config.camera_range_m if camera else self.config.laser_range_m,
@@ -406,20 +409,17 @@ class RobotBrain:
         self._start(running, now)
         self._confirm(event, ResultCode.ACCEPTED, now, progress=0)
 
-    def _budget(self, requester: int) -> int:
-        return data_budget_bytes(self.network.hops_to(requester) or 1)
-
-    def _capture_scan(self, requester: int):
+    def _capture_scan(self, budget: int):
         scan = self.body.scan()
         if scan is None:
             return None
-        return DataKind.LASER_SCAN, encode_scan(scan, max_bytes=self._budget(requester))
+        return DataKind.LASER_SCAN, encode_scan(scan, max_bytes=budget)
 
-    def _capture_image(self, requester: int):
+    def _capture_image(self, budget: int):
         image = self.body.camera()
         if image is None:
             raise NoRendererError("this robot's body has no camera")
-        return DataKind.IMAGE_JPEG, choose_jpeg(image.rgb, max_bytes=self._budget(requester)).data
+        return DataKind.IMAGE_JPEG, choose_jpeg(image.rgb, max_bytes=budget).data
 
     def _send_captures(self, now: float) -> None:
         running = self.running

@@ -19,6 +19,8 @@ from rescuemesh.scenarios.base import CommandRequest, Scenario, ScenarioError, V
 #: In room_north, out of robot_2's sight from its start in the hall (the hall's east wall is between).
 OFFICE_TARGET = Pose2D(11.3, 7.6, 0.0)
 COUNT, PERIOD_S = 3, 1.0
+#: Images are larger: one every 3 s, so that each has the link to itself (docs/sensors.md).
+CAM_PERIOD_S = 3.0
 MIN_MOVE_M = 0.5
 #: Seconds to wait for the last capture after the command's final report.
 LATE_DATA_S = 10.0
@@ -139,7 +141,7 @@ class ShowCamScenario(ShowScanScenario):
 
     def command(self):
         t = self.target()
-        return ShowCam(Pose(t.x, t.y, 0.0, 0.0), PERIOD_S, COUNT)
+        return ShowCam(Pose(t.x, t.y, 0.0, 0.0), CAM_PERIOD_S, COUNT)
 
     def _decoded_ok(self, data: bytes) -> bool:
         try:
