@@ -65,14 +65,14 @@ def frame_of(message, src=1, dst=2, seq=7, ttl=3, attempt=0) -> bytes:
 
 
 def heartbeat(epoch: int, src: int = 1, seq: int = 9, ttl: int = 3) -> bytes:
-    """A 16-byte Heartbeat announcing `epoch` (active_command, init_ttl, epoch), built by hand."""
+    """A 17-byte Heartbeat announcing `epoch` (active_command, init_ttl, epoch, capabilities), by hand."""
     header = bytes((0x40 | ttl, MessageType.HEARTBEAT, src, BROADCAST, seq >> 8, seq & 0xFF))
-    return with_crc(header + bytes((1, ttl)) + epoch.to_bytes(4, "big"))
+    return with_crc(header + bytes((1, ttl)) + epoch.to_bytes(4, "big") + bytes((0x16,)))
 
 
 def epoch_for(frame: bytes, default: int) -> int:
-    """The epoch a frame must be sealed with: a 16-byte Heartbeat's own, `default` otherwise."""
-    if frame[1] & 0x3F == MessageType.HEARTBEAT and len(frame) == 16:
+    """The epoch a frame must be sealed with: a 17-byte Heartbeat's own, `default` otherwise."""
+    if frame[1] & 0x3F == MessageType.HEARTBEAT and len(frame) == 17:
         return int.from_bytes(frame[8:12], "big")
     return default
 

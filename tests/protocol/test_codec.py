@@ -111,7 +111,8 @@ GOLDEN = [
         id="Confirm",
     ),
     pytest.param("43 21 01 02 0008" + Q_HEX, hdr(T.POSE_UPDATE, seq=8), PoseUpdate(Q), id="PoseUpdate"),
-    pytest.param("43 22 01 FF 0009 01 03 00000002", hdr(T.HEARTBEAT, dst=255, seq=9), Heartbeat(1, 3, 2), id="Heartbeat"),
+    pytest.param("43 22 01 FF 0009 01 03 00000002 16", hdr(T.HEARTBEAT, dst=255, seq=9), Heartbeat(1, 3, 2, 0x16),
+                 id="Heartbeat"),
     pytest.param(
         "43 20 02 01 0005 0007 01 05 FF 03",
         hdr(T.CONFIRM, src=2, dst=1, seq=5),

@@ -392,3 +392,15 @@ def test_show_scan_without_a_laser_is_unsupported_with_the_missing_sensor():
     team.run(1.0)
     sent = team.brains["robot_1"].outgoing[seq]
     assert (sent.result, sent.reason) == (ResultCode.UNSUPPORTED, Reason.NO_SENSOR)
+
+
+def test_robots_announce_their_capabilities_and_peers_can_look_them_up_before_asking():
+    from rescuemesh.protocol import Capability
+
+    team = two_robots()
+    team.brains["robot_2"].config = replace(team.brains["robot_2"].config, has_camera=False)
+    team.run(1.5)
+    seen = team.brains["robot_1"].capabilities_of(TWO)
+    assert seen == Capability.LASER | Capability.RELAY  # a ground robot, laser, no camera, relays
+    assert Capability.CAMERA not in seen and Capability.FLYING not in seen
+    assert team.brains["robot_2"].capabilities_of(ONE) == Capability.CAMERA | Capability.LASER | Capability.RELAY

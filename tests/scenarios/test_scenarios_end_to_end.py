@@ -236,3 +236,6 @@ def test_land_on_top_the_drone_lands_on_robot_2_and_is_carried(tmp_path):
     m = result["metrics"]
     assert m["landed_on"] == "robot_2" and m["landing_error_m"] <= 0.08
     assert m["carried_distance_m"] >= 0.95 * m["carrier_drove_m"] >= 1.8
+    seen = m["capabilities_seen"]
+    assert "FLYING" in seen["robot_4_by_robot_2"] and "CAMERA" not in seen["robot_4_by_robot_2"]
+    assert "LANDING_PAD" in seen["robot_2_by_robot_4"] and "CAMERA" in seen["robot_2_by_robot_4"]

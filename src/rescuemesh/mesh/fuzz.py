@@ -90,7 +90,7 @@ def _genuine_frames(rng: random.Random) -> list[bytes]:
             return Header(PROTOCOL_VERSION, FrameFlags.NONE, ttl, attempt, msg_type, src, dst, seq)
 
         if pick == 0:  # a Heartbeat with its epoch, built by hand: active_command, init_ttl, epoch
-            payload = bytes((0, ttl)) + rng.randrange(1 << 32).to_bytes(4, "big")
+            payload = bytes((0, ttl)) + rng.randrange(1 << 32).to_bytes(4, "big") + bytes((rng.randrange(32),))
             frames.append(with_crc(bytes(((PROTOCOL_VERSION << 6) | ttl, MessageType.HEARTBEAT, src,
                                           BROADCAST, seq >> 8, seq & 0xFF)) + payload))
             continue

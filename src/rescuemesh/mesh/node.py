@@ -77,7 +77,7 @@ from .stats import MeshStats
 #: Segmented frames whose epoch the node remembers (a transfer is numbered in one epoch).
 _MAX_TX_EPOCHS = 64
 AUTH_BIT = 0x20  # byte 0, bit 5 (docs/protocol.md section 2)
-_HEARTBEAT_BYTES = 16  # 6 header + active_command + init_ttl + epoch (4) + 4 CRC (docs/protocol.md)
+_HEARTBEAT_BYTES = 17  # 6 header + active_command + init_ttl + epoch (4) + capabilities + 4 CRC
 _HEARTBEAT_INIT_TTL_BYTE = 7
 #: FrameError subclass -> the counter it increments (any other: dropped_malformed).
 _DROP_COUNTER: dict[type, str] = {IntegrityError: "dropped_corrupt"}

@@ -69,7 +69,7 @@ NONCE_BYTES = 13  # 15 - L with L = 2 (messages up to 65535 bytes)
 EPOCH_BYTES = 4
 MAX_EPOCH = 0xFFFFFFFF
 #: A Heartbeat frame with its epoch: header 6, active_command, init_ttl, epoch (bytes 8-11), MIC 4.
-HEARTBEAT_FRAME_BYTES = 16
+HEARTBEAT_FRAME_BYTES = 17
 HEARTBEAT_EPOCH_OFFSET = 8
 _EPOCH_AT = slice(HEARTBEAT_EPOCH_OFFSET, HEARTBEAT_EPOCH_OFFSET + EPOCH_BYTES)
 

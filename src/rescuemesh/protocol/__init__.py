@@ -52,6 +52,7 @@ from .events import (
 from .messages import (
     COMMAND_TYPES,
     CONFIRMABLE_TYPES,
+    Capability,
     PROGRESS_UNKNOWN,
     Command,
     Confirm,
@@ -81,6 +82,7 @@ from .reliability import RESULT_TRANSITIONS, ReliabilityConfig
 __all__ = [
     "BROADCAST",
     "COMMAND_TYPES",
+    "Capability",
     "CONFIRMABLE_TYPES",
     "Command",
     "CommandReceived",

@@ -178,11 +178,12 @@ class Endpoint:
             timeout += rel.per_segment_timeout_s * segments * self._path_hops.get(dst, 1)
         return timeout
 
-    def send_heartbeat(self, now: float, active_command: int = 0) -> None:
+    def send_heartbeat(self, now: float, active_command: int = 0, capabilities: int = 0) -> None:
         """Queue a broadcast Heartbeat (not confirmed, not retried). `active_command`: a command's
-        MessageType value, 0 when idle."""
+        MessageType value, 0 when idle; `capabilities`: Capability bits of this robot."""
         seq = self.allocate_seq()
-        self._queue(self._encode(BROADCAST, seq, Heartbeat(active_command, self.config.initial_ttl, self.epoch)))
+        self._queue(self._encode(BROADCAST, seq, Heartbeat(active_command, self.config.initial_ttl, self.epoch,
+                                                           capabilities)))
 
     def allocate_seq(self) -> int:
         """The next sequence number of this endpoint, for any frame it originates (the mesh layer's
@@ -221,9 +222,8 @@ class Endpoint:
         self._send_confirm(dst, message)
 
     def repeat_report(self, dst: int, ref_seq: int) -> bool:
-        """Send the latest report on frame `ref_seq` from `dst` once more (a final result is not
-        confirmed, so the application may repeat it to make its loss unlikely). False if nothing
-        was reported on that frame or it is no longer remembered."""
+        """Send the latest report on `ref_seq` from `dst` again (final results are not confirmed:
+        repeating makes their loss unlikely). False if nothing was reported or it is forgotten."""
         entry = self._seen.lookup(dst, ref_seq)
         if entry is None or entry.confirm_frame is None:
             return False
@@ -388,7 +388,7 @@ class Endpoint:
         )
 
     def _on_heartbeat(self, header: Header, message: Heartbeat, now: float) -> None:
-        self._events.append(HeartbeatReceived(header.src, message.active_command, now, self._hops))
+        self._events.append(HeartbeatReceived(header.src, message.active_command, now, self._hops, message.capabilities))
 
     def _on_data(self, header: Header, message: Data, now: float) -> None:
         if self._is_new(header, message, now):

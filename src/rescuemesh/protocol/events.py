@@ -87,6 +87,7 @@ class HeartbeatReceived:
     active_command: int
     now: float
     hops: int = 1
+    capabilities: int = 0  # Capability bits the sender announces
 
 
 @dataclass(frozen=True, slots=True)

@@ -6,7 +6,7 @@ the wire format lives in wire.py, payloads.py and codec.py.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from enum import IntEnum
+from enum import IntEnum, IntFlag
 from typing import ClassVar, Union
 
 
@@ -74,6 +74,21 @@ class Reason(IntEnum):
     NO_VIEWPOINT = 18  # ShowScan/ShowCam: no reachable spot sees the requested position
     NO_SENSOR = 19  # UNSUPPORTED: this robot has no camera / no laser for ShowCam / ShowScan
     NOT_FLYING = 20  # UNSUPPORTED: LandOnTop needs a flying robot; or the sender has no top to land on
+
+
+class Capability(IntFlag):
+    """What a robot can do, announced in its Heartbeats (paper Table III's "Target" column)."""
+
+    NONE = 0
+    FLYING = 1  # a flying robot (LandOnTop); otherwise a ground robot
+    CAMERA = 2  # ShowCam
+    LASER = 4  # ShowScan
+    LANDING_PAD = 8  # a top a flying robot may land on
+    RELAY = 16  # relays frames for others (the mesh layer's relay feature)
+
+
+#: Every Capability bit (a Heartbeat with others set is malformed).
+ALL_CAPABILITIES = 0x1F
 
 
 class DataKind(IntEnum):
@@ -231,6 +246,7 @@ class Heartbeat:
     active_command: int
     init_ttl: int
     epoch: int = 0
+    capabilities: int = 0  # Capability bits
 
 
 @dataclass(frozen=True, slots=True)

@@ -10,7 +10,9 @@ from typing import Callable
 
 from .errors import EncodeError, MalformedPayload, UnknownMessageType
 from .messages import (
+    ALL_CAPABILITIES,
     COMMAND_TYPES,
+    Capability,
     CONFIRMABLE_TYPES,
     PROGRESS_UNKNOWN,
     Confirm,
@@ -181,19 +183,25 @@ def _push_heartbeat(buf: bytearray, msg: Heartbeat) -> None:
         raise EncodeError(f"init_ttl {msg.init_ttl} out of range 0..15")
     if not (isinstance(msg.epoch, int) and 0 <= msg.epoch <= 0xFFFFFFFF):
         raise EncodeError(f"epoch {msg.epoch!r} out of range 0..2**32-1")
+    if not (isinstance(msg.capabilities, int) and 0 <= msg.capabilities <= ALL_CAPABILITIES):
+        raise EncodeError(f"capabilities {msg.capabilities!r} are not Capability bits (0..{ALL_CAPABILITIES})")
     push_u8(buf, msg.active_command)
     push_u8(buf, msg.init_ttl)
     buf += _U32.pack(msg.epoch)
+    push_u8(buf, msg.capabilities)
 
 
 def _pull_heartbeat(data: bytes, offset: int, end: int) -> Heartbeat:
     active, init_ttl = data[offset], data[offset + 1]
     epoch = _U32.unpack_from(data, offset + 2)[0]
+    capabilities = data[offset + 6]
+    if capabilities > ALL_CAPABILITIES:
+        raise MalformedPayload(f"Heartbeat capabilities {capabilities:#x}")
     if active not in _HEARTBEAT_COMMANDS:
         raise MalformedPayload(f"Heartbeat active_command {active}")
     if init_ttl > MAX_TTL:
         raise MalformedPayload(f"Heartbeat init_ttl {init_ttl}")
-    return Heartbeat(active, init_ttl, epoch)
+    return Heartbeat(active, init_ttl, epoch, Capability(capabilities))
 
 
 def _push_segment_ack(buf: bytearray, msg: SegmentAck) -> None:
@@ -244,7 +252,7 @@ _CODECS: dict[type, tuple[Callable, int, int, Callable]] = {
     MoveAround: (_push_move_around, 10, 10, _pull_move_around),
     Confirm: (_push_confirm, 6, 6, _pull_confirm),
     PoseUpdate: (_push_pose_of("pose"), 8, 8, _pull_pose_as(PoseUpdate)),
-    Heartbeat: (_push_heartbeat, 6, 6, _pull_heartbeat),
+    Heartbeat: (_push_heartbeat, 7, 7, _pull_heartbeat),
     SegmentAck: (_push_segment_ack, 10, 10, _pull_segment_ack),
     Data: (_push_data, DATA_HEADER_BYTES, DATA_HEADER_BYTES + MAX_DATA_BYTES, _pull_data),
 }

@@ -25,6 +25,7 @@ from rescuemesh.geometry import Pose2D
 from rescuemesh.mesh import NeighbourFound, NeighbourLost, PeerRestarted, TransferComplete, TransferFailed
 from rescuemesh.nav import Costmap, NavigateToPose
 from rescuemesh.protocol import (
+    Capability,
     CommandReceived,
     DataKind,
     Goto,
@@ -209,6 +210,8 @@ class RobotBrain:
         self.frames_rejected = 0
         self.lost_peers: dict[int, float] = {}  # peer with a shared command -> end of its reconnect window (s)
         self._repeats: list[tuple[float, int, int, int]] = []  # (due s, commander, seq, copies left)
+        #: What each peer announced it can do, from its latest Heartbeat.
+        self.peer_capabilities: dict[int, Capability] = {}
         #: Bulk data received (scans, images): (time s, source, kind, command seq, bytes, hops).
         self.received_data: deque[tuple[float, int, DataKind, int, bytes, int]] = deque(maxlen=64)
         self.forwarder = Forwarder(self.address, timeout_s=self.config.forward_timeout_s,
@@ -221,7 +224,7 @@ class RobotBrain:
         self._on_protocol = {
             CommandReceived: self._on_command, PoseUpdateReceived: self._on_pose_update,
             ConfirmReceived: self._on_confirm, DeliveryFailed: self._on_delivery_failed,
-            FrameRejected: self._on_frame_rejected, HeartbeatReceived: _ignore, DataReceived: self._on_data,
+            FrameRejected: self._on_frame_rejected, HeartbeatReceived: self._on_heartbeat, DataReceived: self._on_data,
         }
         self._on_network = {
             NeighbourLost: self._on_neighbour_lost, NeighbourFound: self._on_neighbour_found,
@@ -235,6 +238,27 @@ class RobotBrain:
         """Drive to `goal` on this robot's own account (replaces the running behaviour)."""
         own = Priority(self.rank_of(self.address), MOTION_LEVEL)
         self._start(_Running(NavigateBehaviour(self.nav, goal, now), now, priority=own), now)
+
+    @property
+    def capabilities(self) -> Capability:
+        """What this robot can do, as its Heartbeats announce it."""
+        caps = Capability.NONE
+        if self.body.kind is RobotKind.FLYING:
+            caps |= Capability.FLYING
+        if self.config.has_camera and self.body.kind is RobotKind.GROUND:
+            caps |= Capability.CAMERA
+        if self.config.has_laser and self.body.kind is RobotKind.GROUND:
+            caps |= Capability.LASER
+        if self.body.top_height:
+            caps |= Capability.LANDING_PAD
+        node = getattr(self.network, "node", None)
+        if node is not None and node.config.relay:
+            caps |= Capability.RELAY
+        return caps
+
+    def capabilities_of(self, peer: int) -> Capability | None:
+        """What `peer` announced it can do (None before its first Heartbeat): look before asking."""
+        return self.peer_capabilities.get(peer)
 
     def rank_of(self, address: int) -> Rank:
         return Rank(self.config.ranks.get(address, Rank.PEER))
@@ -286,7 +310,7 @@ class RobotBrain:
         self._stream_poses(now)
         if now >= self._next_heartbeat_s:
             active = self.running.msg_type if self.running and self.running.msg_type else 0
-            self.endpoint.send_heartbeat(now, active_command=int(active))
+            self.endpoint.send_heartbeat(now, active_command=int(active), capabilities=int(self.capabilities))
             period = self.config.heartbeat_period_s
             if self._heartbeat_phase_s is not None:  # after the first: on this robot's phase
                 self._next_heartbeat_s = now + (self._heartbeat_phase_s - now) % period or period
@@ -335,6 +359,9 @@ class RobotBrain:
         self._note(event.now, "command_received",
                    f"{type(event.command).__name__} from {robot_name(event.src)} (seq {event.seq}){hops}")
         self._handlers.get(type(event.command), self._on_unsupported)(event, now)
+
+    def _on_heartbeat(self, event: HeartbeatReceived, now: float) -> None:
+        self.peer_capabilities[event.src] = Capability(event.capabilities)
 
     def _on_frame_rejected(self, event: FrameRejected, now: float) -> None:
         self.frames_rejected += 1

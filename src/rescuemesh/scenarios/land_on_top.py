@@ -11,7 +11,7 @@ from dataclasses import replace
 
 from rescuemesh.body import FlightPhase, RobotKind
 from rescuemesh.geometry import Pose2D
-from rescuemesh.protocol import ResultCode
+from rescuemesh.protocol import Capability, ResultCode
 from rescuemesh.runtime import SimConfig, SimRuntime
 from rescuemesh.scenarios.base import CommandRequest, Scenario, ScenarioError, Verdict, no_collisions, settled
 
@@ -109,5 +109,13 @@ class LandOnTopScenario(Scenario):
             "carried_distance_m": None if carried is None else round(carried, 3),
             "carrier_drove_m": None if drove is None else round(drove, 3),
             "landed_on": landed_on,
+            "capabilities_seen": {  # what each announced in its Heartbeats, as the other saw it
+                "robot_4_by_robot_2": _names(rt.brain(CARRIER).capabilities_of(4)),
+                "robot_2_by_robot_4": _names(rt.brain(DRONE).capabilities_of(2)),
+            },
         }
         return Verdict(all(ok for _, ok in criteria), criteria, metrics)
+
+
+def _names(caps) -> list[str] | None:
+    return None if caps is None else [c.name for c in Capability if c.value and c in caps]
