@@ -404,3 +404,33 @@ def test_robots_announce_their_capabilities_and_peers_can_look_them_up_before_as
     assert seen == Capability.LASER | Capability.RELAY  # a ground robot, laser, no camera, relays
     assert Capability.CAMERA not in seen and Capability.FLYING not in seen
     assert team.brains["robot_2"].capabilities_of(ONE) == Capability.CAMERA | Capability.LASER | Capability.RELAY
+
+
+def test_a_show_scan_of_a_spot_in_sight_runs_beside_the_drive_without_turning_it():
+    team = three_with_ranks()
+    body = team.bodies["robot_2"]
+    body.scan = lambda: fake_scan(body, team.time)
+    follow = team.brains["robot_1"].command_follow(TWO, 0.0)
+    team.run(1.0)
+    ahead = body.pose()
+    spot = Pose(ahead.x + 3.0 * math.cos(ahead.yaw), ahead.y + 3.0 * math.sin(ahead.yaw), 0, 0)
+    scan = team.brains["robot_3"].send(TWO, ShowScan(spot, 0.5, 2), team.time)  # a peer, lower than the lead
+    team.run(3.0)
+    assert team.brains["robot_3"].outgoing[scan].result == ResultCode.DONE
+    assert len([d for d in team.brains["robot_3"].received_data if d[3] == scan]) == 2
+    assert team.brains["robot_2"].behaviour == "follow"  # the Follow was never interrupted
+    assert team.brains["robot_1"].outgoing[follow].result == ResultCode.ACCEPTED
+
+
+def test_a_show_scan_that_would_need_a_turn_waits_for_the_drive_to_end():
+    team = three_with_ranks()
+    body = team.bodies["robot_2"]
+    body.scan = lambda: fake_scan(body, team.time)
+    team.brains["robot_1"].command_follow(TWO, 0.0)
+    team.run(1.0)
+    behind = body.pose()
+    spot = Pose(behind.x - 2.0 * math.cos(behind.yaw), behind.y - 2.0 * math.sin(behind.yaw), 0, 0)
+    scan = team.brains["robot_3"].send(TWO, ShowScan(spot, 0.5, 1), team.time)
+    team.run(1.0)
+    sent = team.brains["robot_3"].outgoing[scan]
+    assert (sent.result, sent.reason) == (ResultCode.TEMPORARILY_REJECTED, Reason.MOTION_HELD)

@@ -17,6 +17,7 @@ window opens; heard again within it, the command resumes; if not, both sides end
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from dataclasses import dataclass, field
 
@@ -62,7 +63,7 @@ from rescuemesh.robot.naming import robot_name
 from rescuemesh.robot.policy import MOTION_LEVEL, Priority, Rank, Resource, conflict, priority_of, resources_of
 from rescuemesh.robot.sensor_codec import STREAM_BYTES_PER_S, choose_jpeg, data_budget_bytes, encode_scan
 from rescuemesh.robot.landing import LandOnTopBehaviour
-from rescuemesh.robot.show import ShowBehaviour
+from rescuemesh.robot.sensing import SensorCommands
 
 
 @dataclass(frozen=True)
@@ -93,6 +94,7 @@ class BrainConfig:
     laser_range_m: float = 5.0  # a viewpoint for ShowScan is at most this far from the position
     camera_range_m: float = 4.0  # ... for ShowCam
     show_timeout_s: float = 120.0  # an open-ended ShowScan/ShowCam (count 0) ends after this
+    laser_fov_rad: float = math.radians(240.0)  # a ShowScan runs beside a drive if the spot is in this
 
 
 @dataclass(frozen=True, slots=True)
@@ -186,7 +188,7 @@ def from_wire_pose(pose: Pose) -> Pose2D:
     return Pose2D(pose.x, pose.y, pose.yaw)
 
 
-class RobotBrain:
+class RobotBrain(SensorCommands):
     """The brain of robot `name`: give it a body, an endpoint, a navigator, and step it."""
 
     def __init__(self, name: str, body: Body, network, nav: NavigateToPose, costmap: Costmap,
@@ -205,6 +207,8 @@ class RobotBrain:
         self.outgoing: dict[int, OutgoingCommand] = {}
         self.streams: dict[int, _PoseStream] = {}
         self.running: _Running | None = None
+        #: A ShowScan running beside the motion command (it needs the laser only: no turn, no drive).
+        self.sensing: _Running | None = None
         self.finished: list[FinishedBehaviour] = []
         self.commands_failed = 0
         self.frames_rejected = 0
@@ -239,36 +243,8 @@ class RobotBrain:
         own = Priority(self.rank_of(self.address), MOTION_LEVEL)
         self._start(_Running(NavigateBehaviour(self.nav, goal, now), now, priority=own), now)
 
-    @property
-    def capabilities(self) -> Capability:
-        """What this robot can do, as its Heartbeats announce it."""
-        caps = Capability.NONE
-        if self.body.kind is RobotKind.FLYING:
-            caps |= Capability.FLYING
-        if self.config.has_camera and self.body.kind is RobotKind.GROUND:
-            caps |= Capability.CAMERA
-        if self.config.has_laser and self.body.kind is RobotKind.GROUND:
-            caps |= Capability.LASER
-        if self.body.top_height:
-            caps |= Capability.LANDING_PAD
-        node = getattr(self.network, "node", None)
-        if node is not None and node.config.relay:
-            caps |= Capability.RELAY
-        return caps
-
-    def capabilities_of(self, peer: int) -> Capability | None:
-        """What `peer` announced it can do (None before its first Heartbeat): look before asking."""
-        return self.peer_capabilities.get(peer)
-
     def rank_of(self, address: int) -> Rank:
         return Rank(self.config.ranks.get(address, Rank.PEER))
-
-    def command_land_on_top(self, peer: int, now: float) -> int:
-        """Send LandOnTop: flying robot `peer` lands on this robot's top (its height in the frame's z);
-        once it is ACCEPTED this robot streams its pose to it, as for Follow."""
-        pose = self.body.pose()
-        top = self.body.top_height or 0.0
-        return self.send(peer, LandOnTop(Pose(pose.x, pose.y, top, pose.yaw)), now)
 
     def command_goto(self, peer: int, goal: Pose2D, now: float) -> int:
         """Send Goto: `peer` drives to `goal` and reports progress, then DONE or FAILED."""
@@ -326,6 +302,12 @@ class RobotBrain:
                 self._end_running(now, behaviour.outcome, behaviour.reason, behaviour.detail)
             else:
                 self._report_progress(now)
+        if self.sensing is not None:
+            sensing = self.sensing.behaviour
+            sensing.step(now, self.body.pose(), self.body.scan())  # it never drives
+            self._send_captures(now, self.sensing)
+            if sensing.finished:
+                self._end_running(now, sensing.outcome, sensing.reason, sensing.detail, sensing=True)
         self.body.set_velocity(*velocity)
 
     def _repeat_final_reports(self, now: float) -> None:
@@ -360,9 +342,6 @@ class RobotBrain:
                    f"{type(event.command).__name__} from {robot_name(event.src)} (seq {event.seq}){hops}")
         self._handlers.get(type(event.command), self._on_unsupported)(event, now)
 
-    def _on_heartbeat(self, event: HeartbeatReceived, now: float) -> None:
-        self.peer_capabilities[event.src] = Capability(event.capabilities)
-
     def _on_frame_rejected(self, event: FrameRejected, now: float) -> None:
         self.frames_rejected += 1
         self._note(event.now, "frame_rejected", event.reason)
@@ -383,18 +362,20 @@ class RobotBrain:
     def _on_stop(self, event: CommandReceived, now: float) -> None:
         self.streams.clear()
         self._end_running(now, ResultCode.CANCELLED, Reason.STOPPED, f"stopped by {robot_name(event.src)}")
+        self._end_running(now, ResultCode.CANCELLED, Reason.STOPPED, f"stopped by {robot_name(event.src)}", sensing=True)
         self.body.set_velocity(0.0, 0.0)
         if self.body.kind is RobotKind.FLYING:
             self.body.hold()  # hover where it is (on a top with its rotors off it stays there)
         self._confirm(event, ResultCode.DONE, now)
         self._note(event.now, "stopped", f"by {robot_name(event.src)}")
 
-    def _admit(self, event: CommandReceived, now: float) -> bool:
+    def _admit(self, event: CommandReceived, now: float, also_needs: Resource = Resource.NONE) -> bool:
         """Whether the command may start now (policy.py); otherwise answer TEMPORARILY_REJECTED."""
         running = self.running
         if running is None:
             return True
-        reason = conflict(event.command.TYPE, self.rank_of(event.src), running.resources, running.priority)
+        reason = conflict(event.command.TYPE, self.rank_of(event.src), running.resources, running.priority,
+                          also_needs)
         if reason is None:
             return True
         self._confirm(event, ResultCode.TEMPORARILY_REJECTED, now, reason=reason)
@@ -408,68 +389,6 @@ class RobotBrain:
         return _Running(behaviour, now, event.src, event.seq, event.command.TYPE,
                         priority_of(event.command.TYPE, self.rank_of(event.src)), resources_of(event.command.TYPE),
                         next_report_s=now + self.config.progress_period_s)
-
-    def _on_show(self, event: CommandReceived, now: float) -> None:
-        command = event.command
-        camera = isinstance(command, ShowCam)
-        if not (self.config.has_camera if camera else self.config.has_laser):
-            self._confirm(event, ResultCode.UNSUPPORTED, now, reason=Reason.NO_SENSOR)
-            return
-        if not self._admit(event, now):
-            return
-        requester = event.src
-        budget = data_budget_bytes(self.network.hops_to(requester) or 1)
-        if command.count != 1:  # a stream must not send more than the link carries in one period
-            budget = min(budget, max(200, int(STREAM_BYTES_PER_S * command.period_s)))
-        capture = (lambda: self._capture_image(budget)) if camera else (lambda: self._capture_scan(budget))
-        behaviour = ShowBehaviour(self.nav, self.costmap, "show-cam" if camera else "show-scan",
-                                  (command.frame.x, command.frame.y),
-                                  self.config.camera_range_m if camera else self.config.laser_range_m,
-                                  command.period_s, command.count, capture, now, self.body.pose(),
-                                  timeout_s=self.config.show_timeout_s)
-        if behaviour.finished:  # no viewpoint at all
-            self._confirm(event, ResultCode.FAILED, now, reason=behaviour.reason)
-            self._note(now, "command_failed", f"{type(command).__name__}: {behaviour.detail}")
-            return
-        running = self._running_for(event, behaviour, now)
-        running.resources |= Resource.MOTION  # it may drive to a viewpoint and turn toward it
-        self._start(running, now)
-        self._confirm(event, ResultCode.ACCEPTED, now, progress=0)
-
-    def _capture_scan(self, budget: int):
-        scan = self.body.scan()
-        if scan is None:
-            return None
-        return DataKind.LASER_SCAN, encode_scan(scan, max_bytes=budget)
-
-    def _capture_image(self, budget: int):
-        image = self.body.camera()
-        if image is None:
-            raise NoRendererError("this robot's body has no camera")
-        return DataKind.IMAGE_JPEG, choose_jpeg(image.rgb, max_bytes=budget).data
-
-    def _send_captures(self, now: float) -> None:
-        running = self.running
-        outbox = getattr(running.behaviour, "outbox", None)
-        if not outbox:
-            return
-        for kind, data in outbox:
-            if running.commander is not None and running.seq is not None:
-                self.endpoint.send_data(running.commander, kind, running.seq, data, now)
-                self._note(now, "data_sent", f"{kind.name} {len(data)} B to {robot_name(running.commander)}")
-        outbox.clear()
-
-    def _on_land_on_top(self, event: CommandReceived, now: float) -> None:
-        frame = event.command.frame
-        if self.body.kind is not RobotKind.FLYING or frame.z <= 0.0:
-            self._confirm(event, ResultCode.UNSUPPORTED, now, reason=Reason.NOT_FLYING)
-            return
-        if not self._admit(event, now):
-            return
-        behaviour = LandOnTopBehaviour(self.nav, self.body, event.src, from_wire_pose(frame), frame.z, now,
-                                       partner_give_up_s=self.config.partner_give_up_s)
-        self._start(self._running_for(event, behaviour, now), now)
-        self._confirm(event, ResultCode.ACCEPTED, now, progress=0)
 
     def _on_goto(self, event: CommandReceived, now: float) -> None:
         self._drive_to(event, from_wire_pose(event.command.frame), now)
@@ -702,11 +621,17 @@ class RobotBrain:
         self.running = running
         self._note(now, "behaviour_started", running.behaviour.name)
 
-    def _end_running(self, now: float, result: ResultCode, code: Reason, reason: str = "") -> None:
-        running, self.running = self.running, None
+    def _end_running(self, now: float, result: ResultCode, code: Reason, reason: str = "",
+                     sensing: bool = False) -> None:
+        """End the motion command (or, with `sensing`, the ShowScan beside it) and report it."""
+        if sensing:
+            running, self.sensing = self.sensing, None
+        else:
+            running, self.running = self.running, None
         if running is None:
             return
-        running.behaviour.halt(now)
+        if not sensing:
+            running.behaviour.halt(now)
         if running.commander is not None:
             self.lost_peers.pop(running.commander, None)
         self.finished.append(FinishedBehaviour(running.behaviour.name, running.started_s, now, result, reason, code))

@@ -94,10 +94,12 @@ def resources_of(msg_type: MessageType) -> Resource:
     return COMMAND_POLICY[msg_type].resources
 
 
-def conflict(new_type: MessageType, new_rank: Rank, held: Resource, running: Priority) -> Reason | None:
+def conflict(new_type: MessageType, new_rank: Rank, held: Resource, running: Priority,
+             also_needs: Resource = Resource.NONE) -> Reason | None:
     """None when a command of `new_type` from a sender of `new_rank` may start now (it needs nothing
-    that is held, or it outranks what holds it); otherwise the reason to answer TEMPORARILY_REJECTED."""
-    overlap = resources_of(new_type) & held
+    that is held, or it outranks what holds it); otherwise the reason to answer TEMPORARILY_REJECTED.
+    `also_needs`: resources beyond the table's (a ShowScan that must drive or turn needs motion)."""
+    overlap = (resources_of(new_type) | also_needs) & held
     if not overlap or priority_of(new_type, new_rank) >= running:
         return None
     for resource, reason in HELD_REASON.items():

@@ -76,7 +76,9 @@ class ShowBehaviour(Behaviour):
     def __init__(self, nav: NavigateToPose, costmap: Costmap, name: str, target: tuple[float, float],
                  range_m: float, period_s: float, count: int,
                  capture: Callable[[], tuple[DataKind, bytes] | None],
-                 now: float, start: Pose2D, *, timeout_s: float = 120.0) -> None:
+                 now: float, start: Pose2D, *, timeout_s: float = 120.0, stationary: bool = False) -> None:
+        """`stationary`: capture from wherever the robot is, without driving or turning (a ShowScan
+        that runs beside a drive, when the position is already in sight)."""
         super().__init__(nav)
         self.name = name
         self.target, self.period_s, self.count, self.timeout_s = target, period_s, count, timeout_s
@@ -85,9 +87,11 @@ class ShowBehaviour(Behaviour):
         self.captures = 0
         self.outbox: list[tuple[DataKind, bytes]] = []
         self._next_capture_s = 0.0
-        self.viewpoint = find_viewpoint(costmap, start, target, range_m)
+        self.viewpoint = start if stationary else find_viewpoint(costmap, start, target, range_m)
         self.moved = False
-        if self.viewpoint is None:
+        if stationary:
+            self.phase = Phase.CAPTURE
+        elif self.viewpoint is None:
             self.phase = Phase.AIM
             self._finish(ResultCode.FAILED, Reason.NO_VIEWPOINT,
                          f"no reachable spot within {range_m:g} m sees ({target[0]:.2f}, {target[1]:.2f})")
