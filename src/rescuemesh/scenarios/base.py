@@ -76,6 +76,12 @@ class CommandRequest:
             self.seqs.append(self._send(self.peer, now))
         return None
 
+    def confirmed(self):
+        """The first copy that got an answer (its OutgoingCommand, with the latest result), or None."""
+        outgoing = self.brain.outgoing
+        return next((outgoing[s] for s in self.seqs if outgoing[s].result is not None and not outgoing[s].failed),
+                    None)
+
     @property
     def given_up(self) -> bool:
         return len(self.seqs) >= self.attempts and all(self.brain.outgoing[s].failed for s in self.seqs)

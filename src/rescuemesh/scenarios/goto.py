@@ -44,13 +44,10 @@ class GotoScenario(Scenario):
         self._goto: CommandRequest | None = None
         self.goto_done_s: float | None = None
 
-    def _outcome(self, rt: SimRuntime, request: CommandRequest | None):
+    @staticmethod
+    def _outcome(rt: SimRuntime, request: CommandRequest | None):
         """The confirmed copy of a request: its OutgoingCommand, or None."""
-        if request is None:
-            return None
-        brain = rt.brain(self.sender)
-        return next((brain.outgoing[s] for s in request.seqs if brain.outgoing[s].result is not None
-                     and not brain.outgoing[s].failed), None)
+        return None if request is None else request.confirmed()
 
     def tick(self, rt: SimRuntime) -> None:
         brain = rt.brain(self.sender)

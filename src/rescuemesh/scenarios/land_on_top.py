@@ -50,11 +50,7 @@ class LandOnTopScenario(Scenario):
         self.settled_s: float | None = None
 
     def _sent(self, rt: SimRuntime):
-        if self._request is None:
-            return None
-        brain = rt.brain(CARRIER)
-        return next((brain.outgoing[s] for s in self._request.seqs if brain.outgoing[s].result is not None
-                     and not brain.outgoing[s].failed), None)
+        return None if self._request is None else self._request.confirmed()
 
     def tick(self, rt: SimRuntime) -> None:
         carrier = rt.brain(CARRIER)

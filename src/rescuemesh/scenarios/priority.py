@@ -45,12 +45,9 @@ class PriorityScenario(Scenario):
         self._follow = self._peer = self._operator = None
         self.follow_accepted_s = self.peer_answered_s = self.operator_answered_s = None
 
-    def _result(self, rt: SimRuntime, name: str, request: CommandRequest | None):
-        if request is None:
-            return None
-        brain = rt.brain(name)
-        return next((brain.outgoing[s] for s in request.seqs if brain.outgoing[s].result is not None
-                     and not brain.outgoing[s].failed), None)
+    @staticmethod
+    def _result(rt: SimRuntime, name: str, request: CommandRequest | None):
+        return None if request is None else request.confirmed()
 
     def tick(self, rt: SimRuntime) -> None:
         now = rt.time

@@ -75,11 +75,7 @@ class RelayScenario(Scenario):
         return self.settled_s is not None or (self._request is not None and self._request.given_up)
 
     def _confirmed_follow(self, rt: SimRuntime):
-        if self._request is None:
-            return None
-        leader = rt.brain(self.leader)
-        return next((leader.outgoing[s] for s in self._request.seqs if leader.outgoing[s].result is not None
-                     and not leader.outgoing[s].failed), None)
+        return None if self._request is None else self._request.confirmed()
 
     def evaluate(self, rt: SimRuntime) -> Verdict:
         follow = self._confirmed_follow(rt)

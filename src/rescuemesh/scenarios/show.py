@@ -57,11 +57,7 @@ class ShowScanScenario(Scenario):
         self.final_s: float | None = None
 
     def _sent(self, rt: SimRuntime):
-        if self._request is None:
-            return None
-        brain = rt.brain(self.asker)
-        return next((brain.outgoing[s] for s in self._request.seqs if brain.outgoing[s].result is not None
-                     and not brain.outgoing[s].failed), None)
+        return None if self._request is None else self._request.confirmed()
 
     def received(self, rt: SimRuntime) -> list:
         sent = self._sent(rt)
