@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -51,8 +52,35 @@ def _starts(items: list[str]):
             robot_address(name)
         except ValueError as error:
             raise UsageError(str(error)) from None
+        if name in starts:
+            raise UsageError(f"--start {name} is given twice: give each robot one start")
         starts[name] = Pose2D(*_pose(value, with_yaw=True))
     return starts
+
+
+#: Options whose value is coordinates: `--goal -7.95,0` is a value, not an option (argparse
+#: would take a leading '-' for an option and say "expected one argument").
+_COORDINATE_OPTIONS = frozenset({"--goal", "--start", "--from"})
+
+
+def _join_negative_values(argv: list[str]) -> list[str]:
+    """`--goal -7.95,0` -> `--goal=-7.95,0` (what argparse needs for a value that starts with '-')."""
+    out, i = [], 0
+    while i < len(argv):
+        value = argv[i + 1] if i + 1 < len(argv) else ""
+        if argv[i] in _COORDINATE_OPTIONS and value[:1] == "-" and value[1:2] in set("0123456789."):
+            out.append(f"{argv[i]}={argv[i + 1]}")
+            i += 2
+        else:
+            out.append(argv[i])
+            i += 1
+    return out
+
+
+def _folder(text: str) -> Path:
+    if not text.strip():
+        raise argparse.ArgumentTypeError("is empty: give a folder")
+    return Path(text)
 
 
 def _check_seed(seed: int) -> None:
@@ -78,7 +106,7 @@ def build_parser() -> argparse.ArgumentParser:
     run = sub.add_parser("run", help="run a scenario in the MuJoCo office")
     run.add_argument("scenario", help="scenario name (see `rescuemesh scenarios`)")
     run.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    run.add_argument("--out", type=Path, default=None, help="output folder (default out/SCENARIO)")
+    run.add_argument("--out", type=_folder, default=None, help="output folder (default out/SCENARIO)")
     run.add_argument("--loss", type=float, default=0.0, help="per-frame loss probability in [0, 1) (default 0)")
     run.add_argument("--map", type=Path, default=None, help="map file: rescuemesh wall YAML or ROS map_server YAML")
     run.add_argument("--radius", type=float, default=1.5, help="move-around radius in m (default 1.5)")
@@ -119,7 +147,28 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     try:
-        args = build_parser().parse_args(argv)
+        return _main(argv)
+    except BrokenPipeError:
+        # The reader went away (`rescuemesh run follow | head -1`): the run itself is over. Point
+        # stdout at nothing so that the interpreter's final flush does not fail again (Python
+        # docs, "Note on SIGPIPE").
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno()) if hasattr(sys.stdout, "fileno") and _has_fd(sys.stdout) else None
+        return EXIT_OK
+
+
+def _has_fd(stream) -> bool:
+    try:
+        stream.fileno()
+    except (OSError, ValueError, AttributeError):
+        return False
+    return True
+
+
+def _main(argv: list[str] | None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        args = build_parser().parse_args(_join_negative_values(argv))
         if args.command == "scenarios":
             return _list_scenarios()
         if args.command == "radio-map":
@@ -169,6 +218,8 @@ def _run(args) -> int:
     if args.outage is not None and not (0 < args.outage < math.inf):
         raise UsageError(f"--outage must be a finite number of seconds > 0, got {args.outage}")
     _check_seed(args.seed)
+    if args.goal is not None and not args.goal.strip():
+        raise UsageError("--goal is empty: give X,Y in m")
     goal = Pose2D(*_pose(args.goal, with_yaw=False)) if args.goal else None
     key, key_source = _team_key(args)
     options = ScenarioOptions(seed=args.seed, loss=args.loss, radius_m=args.radius, starts=_starts(args.start),

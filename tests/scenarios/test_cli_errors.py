@@ -107,3 +107,58 @@ def test_relay_on_another_map_needs_every_start(tmp_path, capsys):
                     "  - [9.9, 0, 10, 10]\nstarts:\n  robot_1: [1, 1, 0]\n  robot_2: [2, 2, 0]\n  robot_3: [3, 3, 0]\n")
     assert main(["run", "relay", "--map", str(path), "--out", str(tmp_path / "out")]) == 2
     assert "relay needs --start for robot_1, robot_2 and robot_3" in capsys.readouterr().err
+
+
+# --- rough edges a new user hit on real maps (issue: scale and real maps) -----------------------------
+
+
+def test_a_negative_goal_is_a_value_not_an_option(tmp_path, capsys):
+    # this used to fail with "expected one argument": only --goal=-7.95,0 worked
+    code = main(["run", "follow", "--goal", "-7.95,0", "--out", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2 and "goal (-7.95, 0.00) is inside an obstacle or off the map" in err
+    assert "expected one argument" not in err
+
+
+def test_a_negative_transmitter_position_is_a_value_too(capsys, tmp_path):
+    assert main(["radio-map", "--from", "-3,4", "--out", str(tmp_path)]) == 2
+    assert "transmitter (-3, 4) is off the map" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["--start", "robot_2=5,4.6,0", "--start", "robot_2=5,4,0"], "--start robot_2 is given twice"),
+    (["--goal", ""], "--goal is empty"),
+    (["--out", ""], "--out: is empty"),
+])
+def test_options_given_twice_or_empty_are_refused(argv, words, capsys, tmp_path):
+    # this used to keep the last --start silently, and to accept an empty --goal or --out
+    argv = ["run", "follow", *argv] + ([] if "--out" in argv else ["--out", str(tmp_path)])
+    assert main(argv) == 2
+    assert words in capsys.readouterr().err
+
+
+def test_an_unreachable_goal_says_why_in_the_summary(tmp_path, capsys):
+    # this used to print only "[ ] leader reached its goal"; the reason was in result.json alone
+    boxed = tmp_path / "boxed.yaml"
+    boxed.write_text("name: boxed\nwalls:\n  - [0, 0, 10, 0.1]\n  - [0, 9.9, 10, 10]\n  - [0, 0, 0.1, 10]\n"
+                     "  - [9.9, 0, 10, 10]\n  - [6, 6, 9, 6.1]\n  - [6, 8.9, 9, 9]\n  - [6, 6, 6.1, 9]\n"
+                     "  - [8.9, 6, 9, 9]\nstarts:\n  robot_1: [2, 2, 0]\n  robot_2: [1, 2, 0]\n  robot_3: [2, 4, 0]\n")
+    code = main(["run", "follow", "--map", str(boxed), "--goal", "7.5,7.5", "--quiet", "--out", str(tmp_path / "o")])
+    out = capsys.readouterr().out
+    assert code == 1 and "[ ] leader reached its goal (FAILED: navigation aborted: no path)" in out
+
+
+class _ClosedPipe:
+    """A stdout whose reader went away."""
+
+    def write(self, text):
+        raise BrokenPipeError(32, "Broken pipe")
+
+    def flush(self):
+        raise BrokenPipeError(32, "Broken pipe")
+
+
+def test_a_reader_that_goes_away_ends_the_run_quietly(monkeypatch, capsys):
+    # this used to end `rescuemesh run follow | head -1` with a BrokenPipeError traceback and exit 1
+    monkeypatch.setattr("sys.stdout", _ClosedPipe())
+    assert main(["scenarios"]) == 0

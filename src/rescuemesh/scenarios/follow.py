@@ -67,7 +67,8 @@ class FollowScenario(Scenario):
         goal = self.goal()
         goal_region = self.map.region_of(goal.x, goal.y)
         criteria = [("Follow confirmed ACCEPTED", self.accepted_s is not None),
-                    ("leader reached its goal", self._leader_result == ResultCode.DONE)]
+                    (f"leader reached its goal{_why_not(rt.brain(self.leader), 'navigate')}",
+                     self._leader_result == ResultCode.DONE)]
         passed_doorway = None
         if goal_region is not None and self.map.regions:
             start = rt.trajectories[self.follower][0].pose
@@ -95,6 +96,15 @@ class FollowScenario(Scenario):
             "goal_region": goal_region,
         }
         return Verdict(all(ok for _, ok in criteria), criteria, metrics)
+
+
+def _why_not(brain, behaviour: str) -> str:
+    """' (the reason)' when the last `behaviour` ended in anything but DONE, '' otherwise: the
+    summary says why a leader did not get there ("no path") instead of a bare unchecked box."""
+    last = next((f for f in reversed(brain.finished) if f.name == behaviour), None)
+    if last is None or last.result == ResultCode.DONE:
+        return ""
+    return f" ({last.result.name}: {last.reason})" if last.reason else f" ({last.result.name})"
 
 
 def _last_result(brain, behaviour: str) -> ResultCode | None:
