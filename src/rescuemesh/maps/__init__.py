@@ -4,6 +4,7 @@ Owns: MapModel, OccupancyGrid, load_map. Pure numpy/PyYAML/Pillow: no MuJoCo, no
 """
 
 from rescuemesh.maps.grid import OccupancyGrid
-from rescuemesh.maps.model import MapError, MapModel, Rect, load_map, office_map_path
+from rescuemesh.maps.loaders import load_map
+from rescuemesh.maps.model import MapError, MapModel, Rect, office_map_path
 
 __all__ = ["MapError", "MapModel", "OccupancyGrid", "Rect", "load_map", "office_map_path"]

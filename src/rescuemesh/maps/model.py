@@ -1,7 +1,8 @@
-"""MapModel: what every layer may know of a map, and `load_map` for both supported file kinds.
+"""MapModel: what every layer may know of a map.
 
-Owns: the map data model and the two loaders (rescuemesh wall YAML, ROS map_server PGM+YAML).
-Must not know: physics, navigation, scenarios.
+Owns: the map data model, MapError and the packaged office map's path. The loaders
+(`maps/loaders.py`, `load_map`) import this module, never the reverse.
+Must not know: physics, navigation, scenarios, file formats.
 """
 
 from __future__ import annotations
@@ -70,12 +71,3 @@ def office_map_path() -> Path:
     """Path of the packaged office map (`rescuemesh/data/office.yaml`)."""
     return Path(str(resources.files("rescuemesh") / "data" / "office.yaml"))
 
-
-def load_map(path: str | Path, grid_resolution: float = 0.05) -> MapModel:
-    """Load a map file: a rescuemesh wall map (YAML with `walls:`) or a ROS map_server map (YAML with `image:`).
-
-    Raises MapError with a one-line message for a missing, unreadable or malformed file.
-    """
-    from rescuemesh.maps.loaders import load_map_file
-
-    return load_map_file(Path(path), grid_resolution)
