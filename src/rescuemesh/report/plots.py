@@ -3,6 +3,8 @@
 Owns: the matplotlib figure (Agg, no screen). Must not know: how the run was scripted.
 Shows walls (the occupancy grid), doorways, region names, each robot's path with start (circle),
 end (square) and direction arrows, the leader's goal (star) and a MoveAround circle (dashed).
+The view is cropped to the known part of the map and the paths (`view_extent`): a SLAM map padded
+with unknown space shows its building, not the padding.
 """
 
 from __future__ import annotations
@@ -18,6 +20,42 @@ from matplotlib.patches import Circle, Rectangle  # noqa: E402
 
 COLOURS = {"robot_1": "#1f77b4", "robot_2": "#d62728", "robot_3": "#2ca02c"}
 ARROW_EVERY_M = 1.0
+#: Room shown around the known part of the map and the paths, in m.
+VIEW_MARGIN_M = 1.0
+
+
+def view_extent(map_model, trajectories, margin_m: float = VIEW_MARGIN_M,
+                points=()) -> tuple[float, float, float, float]:
+    """(x_min, x_max, y_min, y_max) in m to show: the bounding box of the map's free cells, its walls
+    (occupied cells; unknown cells do not count), every robot's path (`trajectories`: name ->
+    samples with a `.pose`) and `points` (x, y), grown by `margin_m` and clipped to the grid."""
+    grid = map_model.grid
+    rows, cols = grid.shape
+    res = grid.resolution
+    full = (grid.origin_x, grid.origin_x + cols * res, grid.origin_y, grid.origin_y + rows * res)
+    xs: list[float] = []
+    ys: list[float] = []
+    free = ~np.asarray(grid.occupied, dtype=bool)
+    free_rows, free_cols = np.flatnonzero(free.any(axis=1)), np.flatnonzero(free.any(axis=0))
+    if free_rows.size:
+        xs += [grid.origin_x + free_cols[0] * res, grid.origin_x + (free_cols[-1] + 1) * res]
+        ys += [grid.origin_y + free_rows[0] * res, grid.origin_y + (free_rows[-1] + 1) * res]
+    for wall in map_model.walls:
+        xs += [wall.x_min, wall.x_max]
+        ys += [wall.y_min, wall.y_max]
+    for samples in trajectories.values():
+        xs += [s.pose.x for s in samples]
+        ys += [s.pose.y for s in samples]
+    for x, y in points:
+        xs.append(x)
+        ys.append(y)
+    if not xs:
+        return full
+    x0, x1 = max(full[0], min(xs) - margin_m), min(full[1], max(xs) + margin_m)
+    y0, y1 = max(full[2], min(ys) - margin_m), min(full[3], max(ys) + margin_m)
+    if x1 <= x0 or y1 <= y0:  # everything off the grid
+        return full
+    return (x0, x1, y0, y1)
 
 
 def plot_trajectories(rt, map_model, path: Path, *, title: str = "", metrics: dict | None = None) -> Path:
@@ -25,18 +63,20 @@ def plot_trajectories(rt, map_model, path: Path, *, title: str = "", metrics: di
     rows, cols = grid.shape
     extent = (grid.origin_x, grid.origin_x + cols * grid.resolution,
               grid.origin_y, grid.origin_y + rows * grid.resolution)
-    width = extent[1] - extent[0]
-    height = extent[3] - extent[2]
-    fig, ax = plt.subplots(figsize=(min(16, 2 + 0.75 * width), min(12, 1.5 + 0.75 * height)), dpi=110)
+    metrics = metrics or {}
+    view = view_extent(map_model, rt.trajectories, VIEW_MARGIN_M, _metric_points(metrics))
+    width = view[1] - view[0]
+    height = view[3] - view[2]
+    fig, ax = plt.subplots(figsize=(min(16, 3.5 + 0.75 * width), min(12, 1.5 + 0.75 * height)), dpi=110)
     ax.imshow(np.where(grid.occupied, 0.15, 1.0), cmap="gray", vmin=0, vmax=1, origin="lower",
               extent=extent, interpolation="nearest")
     for name, rect in map_model.regions.items():
         cx, cy = rect.center
-        ax.text(cx, cy, name, color="0.55", fontsize=8, ha="center", va="center", style="italic", zorder=1)
+        ax.text(cx, cy, name, color="0.55", fontsize=8, ha="center", va="center", style="italic", zorder=1,
+                clip_on=True)
     for door in map_model.doorways:
         ax.add_patch(Rectangle((door.x_min, door.y_min), door.x_max - door.x_min, door.y_max - door.y_min,
                                facecolor="#ffd54f", edgecolor="#b28704", alpha=0.7, lw=0.8, zorder=2))
-    metrics = metrics or {}
     if "goal" in metrics and metrics["goal"]:
         gx, gy = metrics["goal"]
         ax.plot(gx, gy, marker="*", ms=16, color="gold", mec="k", zorder=6, ls="none", label="leader goal")
@@ -68,8 +108,8 @@ def plot_trajectories(rt, map_model, path: Path, *, title: str = "", metrics: di
     ax.plot([], [], "s", color="k", ls="none", label="end")
     if map_model.doorways:
         ax.add_patch(Rectangle((0, 0), 0, 0, facecolor="#ffd54f", edgecolor="#b28704", label="doorway"))
-    ax.set_xlim(extent[0], extent[1])
-    ax.set_ylim(extent[2], extent[3])
+    ax.set_xlim(view[0], view[1])
+    ax.set_ylim(view[2], view[3])
     ax.set_aspect("equal")
     ax.set_xlabel("x [m] (frame map)")
     ax.set_ylabel("y [m]")
@@ -80,6 +120,15 @@ def plot_trajectories(rt, map_model, path: Path, *, title: str = "", metrics: di
     fig.savefig(path)
     plt.close(fig)
     return path
+
+
+def _metric_points(metrics: dict) -> list[tuple[float, float]]:
+    """Points the view must hold besides the map and the paths: the goal, a Stop, a MoveAround circle."""
+    points = [tuple(metrics[key][:2]) for key in ("goal", "stop_position") if metrics.get(key)]
+    if metrics.get("center") and metrics.get("radius_m"):
+        (cx, cy), r = metrics["center"][:2], metrics["radius_m"]
+        points += [(cx - r, cy - r), (cx + r, cy + r)]
+    return points
 
 
 def _arrows(ax, xy: np.ndarray, colour) -> None:

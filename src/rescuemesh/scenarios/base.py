@@ -11,6 +11,9 @@ import math
 from dataclasses import dataclass, field
 from typing import ClassVar
 
+import numpy as np
+
+from rescuemesh.body import RobotKind
 from rescuemesh.geometry import Pose2D
 from rescuemesh.maps import MapModel
 from rescuemesh.protocol import ResultCode
@@ -20,6 +23,9 @@ from rescuemesh.runtime import RadioKind, SimConfig, SimRuntime, TrajectorySampl
 ROBOTS = ("robot_1", "robot_2", "robot_3")
 #: Two TurtleBot 2 footprints (0.177 m radius each) plus a little room.
 MIN_START_SEPARATION_M = 0.4
+#: Room a ground robot needs around its start: the TurtleBot 2 footprint (0.177 m radius, as
+#: sim/mjcf.py CHASSIS_RADIUS) and a few mm. Every grid cell nearer than this must be free.
+START_CLEARANCE_M = 0.18
 
 
 class ScenarioError(ValueError):
@@ -141,10 +147,17 @@ class Scenario(abc.ABC):
                 if pose.distance_to(other_pose) < MIN_START_SEPARATION_M:
                     raise ScenarioError(f"{name} and {other} start {pose.distance_to(other_pose):.2f} m apart: "
                                         f"robots need at least {MIN_START_SEPARATION_M} m")
+        kinds = self.sim_config().kinds
         for name, pose in starts.items():
             if self.map.grid.is_occupied(pose.x, pose.y):
                 raise ScenarioError(f"start of {name} ({pose.x:.2f}, {pose.y:.2f}) is inside an obstacle "
                                     f"or off the map")
+            if kinds.get(name, RobotKind.GROUND) is not RobotKind.GROUND:
+                continue  # a drone: its own body, only the centre is checked
+            clearance = _clearance(self.map.grid, pose.x, pose.y, START_CLEARANCE_M)
+            if clearance < START_CLEARANCE_M - 1e-9:
+                raise ScenarioError(f"start of {name} ({pose.x:.2f}, {pose.y:.2f}) is {clearance:.2f} m from an "
+                                    f"obstacle: a TurtleBot 2 needs {START_CLEARANCE_M:.2f} m")
         return starts
 
     def write_files(self, rt: SimRuntime, out_dir) -> list:
@@ -162,6 +175,26 @@ class Scenario(abc.ABC):
     @abc.abstractmethod
     def evaluate(self, rt: SimRuntime) -> Verdict:
         """Success criteria and the scenario's metrics."""
+
+
+def _clearance(grid, x: float, y: float, reach: float) -> float:
+    """Distance in m from (x, y) to the nearest obstacle or off-map cell (to the nearest point of
+    that cell's square), looking `reach` m around; `reach` when there is none that near."""
+    res = grid.resolution
+    row, col = grid.world_to_cell(x, y)
+    n = math.ceil(reach / res) + 1
+    rows = np.arange(row - n, row + n + 1)
+    cols = np.arange(col - n, col + n + 1)
+    n_rows, n_cols = grid.shape
+    r, c = np.meshgrid(rows, cols, indexing="ij")
+    inside = (r >= 0) & (r < n_rows) & (c >= 0) & (c < n_cols)
+    blocked = ~inside
+    blocked[inside] = grid.occupied[r[inside], c[inside]]
+    x_lo, y_lo = grid.origin_x + cols * res, grid.origin_y + rows * res  # lower-left corners
+    dx = np.maximum(np.maximum(x_lo - x, x - (x_lo + res)), 0.0)
+    dy = np.maximum(np.maximum(y_lo - y, y - (y_lo + res)), 0.0)
+    distance = np.hypot(dy[:, None], dx[None, :])[blocked]
+    return float(min(reach, distance.min())) if distance.size else reach
 
 
 #: A robot counts as settled once its speed stays below SETTLED_SPEED (m/s) for SETTLE_S seconds.
