@@ -1,4 +1,5 @@
-"""`rescuemesh bench`: the figures we track: real-time factor of the follow scenario, codec rate, and
+"""`rescuemesh bench`: the figures we track: real-time factor of the follow scenario (on the office and on a
+SLAM-like map of about 1,000 wall boxes), codec rate, and
 the network: confirm latency over a chain of relays, delivery ratio on a lossy link.
 
 Owns: timing (wall clock) and the bench JSON. Must not know: scenario internals. Prints figures;
@@ -9,9 +10,12 @@ from __future__ import annotations
 
 import json
 import platform
+import tempfile
 import time
 from pathlib import Path
 
+from rescuemesh.maps import load_map, office_map_path
+from rescuemesh.maps.slam_like import write_slam_like_map
 from rescuemesh.protocol import MAX_CONTROL_FRAME_BYTES, MessageType
 from rescuemesh.protocol.bench import codec_roundtrip_rate
 from rescuemesh.mesh.security import seal_open_rate
@@ -20,7 +24,9 @@ from rescuemesh.runtime.mesh_bench import chain_confirm_latency, delivery_ratio
 from rescuemesh.scenarios import ScenarioOptions
 from rescuemesh.scenarios.runner import run_scenario
 
-RTF_GOAL = 30.0
+#: Issue 8's goals: the three-robot follow at 100x real time on the office, 50x on a SLAM-like map.
+RTF_GOAL = 100.0
+SLAM_RTF_GOAL = 50.0
 CODEC_GOAL_FPS = 100_000
 SEAL_GOAL_FPS = 50_000
 #: Bluetooth Mesh measurements (docs/mesh.md): TI SWRA732 19-33 ms for 1 hop; under 200 ms for 6.
@@ -56,11 +62,31 @@ def run_bench(out: Path, *, seed: int = 0) -> int:
     widest = max(sizes, key=sizes.get)
     print(f"largest frame   : {figures['follow_max_frame_bytes']} bytes in this run; "
           f"{sizes[widest]} bytes for any message ({widest}; budget {MAX_CONTROL_FRAME_BYTES})")
+    figures["slam_like"] = _slam_like_figures(seed)
     figures["network"] = _network_figures(seed)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(figures, indent=2) + "\n")
     print(f"wrote {out}")
     return 0
+
+
+def _slam_like_figures(seed: int) -> dict:
+    """The follow scenario on a SLAM-like map of the office (ragged walls, clutter, unknown border:
+    about 1,000 occupied-cell runs, each a wall box), from the office's starts to its goal."""
+    office = load_map(office_map_path())
+    starts = dict(office.starts)
+    with tempfile.TemporaryDirectory(prefix="rescuemesh-bench-") as folder:
+        map_path = write_slam_like_map(Path(folder), seed=seed)
+        boxes = len(load_map(map_path).walls)
+        outcome = run_scenario("follow", ScenarioOptions(seed=seed, starts=starts, goal=office.goals["follow_leader"]),
+                               map_path=map_path)
+    result = outcome.result
+    print(f"SLAM-like map   : {boxes} wall boxes; follow {result['sim_time_s']:.1f} s simulated in "
+          f"{result['wall_time_s']:.2f} s -> {result['real_time_factor']}x real time (goal >= {SLAM_RTF_GOAL:g}x)"
+          f"{'' if result['success'] else ' (the run FAILED)'}")
+    return {"wall_boxes": boxes, "follow_real_time_factor": result["real_time_factor"],
+            "follow_sim_time_s": result["sim_time_s"], "follow_wall_time_s": result["wall_time_s"],
+            "follow_success": result["success"], "goal_real_time_factor": SLAM_RTF_GOAL}
 
 
 def _network_figures(seed: int) -> dict:
