@@ -84,3 +84,26 @@ def test_trajectory_png_of_the_office_shows_the_whole_office(tmp_path, monkeypat
                                                    robot_2=[(5.1, 4.6), (11.0, 4.6), (14.4, 4.0)]))
     plot_trajectories(rt, office, tmp_path / "trajectory.png", title="office")
     assert seen == [pytest.approx((0.0, 19.5, 0.0, 9.2))]
+
+
+def test_unknown_space_is_drawn_lighter_than_walls_and_darker_than_free_space(tmp_path):
+    # this used to draw unknown padding exactly as dark as the walls
+    from rescuemesh.report.plots import FREE_SHADE, UNKNOWN_SHADE, WALL_SHADE, map_shades
+
+    slam = write_padded_slam_map(tmp_path)
+    shades = map_shades(slam)
+    grid = slam.grid
+    at = lambda x, y: shades[grid.world_to_cell(x, y)]  # noqa: E731
+    assert at(-8.0, -8.0) == UNKNOWN_SHADE  # the padding
+    assert at(-2.45, 0.0) == WALL_SHADE  # the room's west wall
+    assert at(0.0, 0.0) == FREE_SHADE
+    assert WALL_SHADE < UNKNOWN_SHADE < FREE_SHADE
+
+
+def test_the_office_has_no_unknown_shade():
+    from rescuemesh.report.plots import UNKNOWN_SHADE, map_shades
+
+    office = load_map(office_map_path())
+    shades = map_shades(office)
+    assert not (shades == UNKNOWN_SHADE).any()
+    assert (shades[office.grid.occupied] < UNKNOWN_SHADE).all()

@@ -17,6 +17,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.patches import Circle, Rectangle  # noqa: E402
+from rescuemesh.maps.model import Rect  # noqa: E402
+from rescuemesh.maps.raster import rasterise_walls  # noqa: E402
 
 COLOURS = {"robot_1": "#1f77b4", "robot_2": "#d62728", "robot_3": "#2ca02c"}
 ARROW_EVERY_M = 1.0
@@ -58,6 +60,23 @@ def view_extent(map_model, trajectories, margin_m: float = VIEW_MARGIN_M,
     return (x0, x1, y0, y1)
 
 
+#: Grey levels of the map in trajectory.png: walls dark, unknown space (blocked for planning, but
+#: no wall) light grey as map_server viewers show it, free space white.
+WALL_SHADE, UNKNOWN_SHADE, FREE_SHADE = 0.15, 0.72, 1.0
+
+
+def map_shades(map_model) -> np.ndarray:
+    """The grid as grey levels (row 0 the lowest y): WALL_SHADE where a wall box covers a blocked
+    cell, UNKNOWN_SHADE where a cell is blocked without a wall (unknown space), FREE_SHADE elsewhere."""
+    grid = map_model.grid
+    rows, cols = grid.shape
+    res = grid.resolution
+    bounds = Rect(grid.origin_x, grid.origin_y, grid.origin_x + cols * res, grid.origin_y + rows * res)
+    walls = rasterise_walls(map_model.walls, bounds, res).occupied[:rows, :cols]
+    blocked = np.asarray(grid.occupied, dtype=bool)
+    return np.where(blocked, np.where(walls, WALL_SHADE, UNKNOWN_SHADE), FREE_SHADE)
+
+
 def plot_trajectories(rt, map_model, path: Path, *, title: str = "", metrics: dict | None = None) -> Path:
     grid = map_model.grid
     rows, cols = grid.shape
@@ -68,7 +87,7 @@ def plot_trajectories(rt, map_model, path: Path, *, title: str = "", metrics: di
     width = view[1] - view[0]
     height = view[3] - view[2]
     fig, ax = plt.subplots(figsize=(min(16, 3.5 + 0.75 * width), min(12, 1.5 + 0.75 * height)), dpi=110)
-    ax.imshow(np.where(grid.occupied, 0.15, 1.0), cmap="gray", vmin=0, vmax=1, origin="lower",
+    ax.imshow(map_shades(map_model), cmap="gray", vmin=0, vmax=1, origin="lower",
               extent=extent, interpolation="nearest")
     for name, rect in map_model.regions.items():
         cx, cy = rect.center
