@@ -22,7 +22,7 @@ bench: $(VENV)/.installed
 	$(BIN)/rescuemesh bench --out out/bench.json
 
 fuzz: $(VENV)/.installed
-	$(BIN)/python -m rescuemesh.mesh.fuzz --frames 1000000
+	$(BIN)/python -m rescuemesh.fuzz --frames 1000000
 
 clean:
 	rm -rf $(VENV) out .pytest_cache

@@ -1,5 +1,5 @@
 """Forgery fuzzer for frame security: random bytes and mutated sealed frames into FrameSealer.open
-with the right key; none may be accepted. A command (`python -m rescuemesh.mesh.fuzz --frames N`),
+with the right key; none may be accepted. A command (`python -m rescuemesh.fuzz --frames N`),
 not part of the sans-IO stack: it draws its own random numbers and reads a clock for its rate.
 """
 
@@ -38,11 +38,11 @@ from rescuemesh.protocol import (
     encode_frame,
 )
 
-from .frames import AUTH_BIT, SEG_BIT, TTL_MASK
-from .frames import seal as with_crc
-from .keys import derive_frame_key, team_key_from_seed
-from .security import AuthenticationError, FrameSealer, MicMismatch
-from .segments import make_segment, segment_count
+from rescuemesh.mesh.frames import AUTH_BIT, SEG_BIT, TTL_MASK
+from rescuemesh.mesh.frames import seal as with_crc
+from rescuemesh.mesh.keys import derive_frame_key, team_key_from_seed
+from rescuemesh.mesh.security import AuthenticationError, FrameSealer, MicMismatch
+from rescuemesh.mesh.segments import make_segment, segment_count
 
 #: Mutation kinds, drawn uniformly. Each produces bytes that differ from the genuine sealed frame,
 #: or the genuine bytes with another epoch.
@@ -227,7 +227,7 @@ def run_fuzz(
 def main(argv: list[str] | None = None) -> int:
     """Exit status 0: every frame rejected; 1: a frame accepted or an exception other than
     AuthenticationError; 2: the time bound stopped the run before `--frames`."""
-    parser = argparse.ArgumentParser(prog="python -m rescuemesh.mesh.fuzz", description=__doc__)
+    parser = argparse.ArgumentParser(prog="python -m rescuemesh.fuzz", description=__doc__)
     parser.add_argument("--frames", type=int, default=100_000, help="frames to try (default 100000)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     parser.add_argument("--max-seconds", type=float, default=DEFAULT_MAX_SECONDS,
