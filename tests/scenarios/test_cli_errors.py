@@ -109,6 +109,15 @@ def test_relay_on_another_map_needs_every_start(tmp_path, capsys):
     assert "relay needs --start for robot_1, robot_2 and robot_3" in capsys.readouterr().err
 
 
+
+@pytest.mark.parametrize("scenario, role", [("land-on-top", "the drone"), ("priority", "the operator station")])
+def test_a_fourth_robot_on_another_map_needs_its_start(scenario, role, tmp_path, capsys):
+    path = tmp_path / "plain.yaml"
+    path.write_text("name: plain\nwalls:\n  - [0, 0, 10, 0.1]\n  - [0, 9.9, 10, 10]\n  - [0, 0, 0.1, 10]\n"
+                    "  - [9.9, 0, 10, 10]\nstarts:\n  robot_1: [1, 1, 0]\n  robot_2: [2, 2, 0]\n  robot_3: [3, 3, 0]\n")
+    assert main(["run", scenario, "--map", str(path), "--out", str(tmp_path / "out")]) == 2
+    assert f"{scenario} needs --start robot_4=X,Y,YAW ({role}) on map 'plain'" in capsys.readouterr().err
+
 # --- rough edges a new user hit on real maps (issue: scale and real maps) -----------------------------
 
 

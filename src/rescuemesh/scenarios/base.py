@@ -21,6 +21,8 @@ from rescuemesh.robot import RobotBrain, robot_address
 from rescuemesh.runtime import RadioKind, SimConfig, SimRuntime, TrajectorySample
 
 ROBOTS = ("robot_1", "robot_2", "robot_3")
+#: Name of the packaged office map (rescuemesh/data/office.yaml): scenarios have default poses for it.
+OFFICE_MAP_NAME = "small_office"
 #: Two TurtleBot 2 footprints (0.177 m radius each) plus a little room.
 MIN_START_SEPARATION_M = 0.4
 #: Room a ground robot needs around its start: the TurtleBot 2 footprint (0.177 m radius, as
@@ -104,6 +106,9 @@ class Scenario(abc.ABC):
     takes_outage: ClassVar[bool] = False
     #: The team of this scenario.
     robots: ClassVar[tuple[str, ...]] = ROBOTS
+    #: Robots this scenario adds to the map's starts on the packaged office: name -> (pose, what
+    #: the robot is); on any other map each needs a --start.
+    office_extra_starts: ClassVar[dict[str, tuple[Pose2D, str]]] = {}
 
     def __init__(self, options: ScenarioOptions, map_model: MapModel) -> None:
         self.options = options
@@ -124,9 +129,26 @@ class Scenario(abc.ABC):
         o = self.options
         return SimConfig(seed=o.seed, loss=o.loss, radio=o.radio, relay=o.relay, secure=o.secure, team_key=o.team_key)
 
+    @property
+    def on_office(self) -> bool:
+        """Whether this run is on the packaged office, where the scenario's default poses apply."""
+        return self.map.name == OFFICE_MAP_NAME
+
+    def require_free(self, what: str, point: Pose2D) -> None:
+        """ScenarioError when `point` (described as `what`) lies in an obstacle or off the map."""
+        if self.map.grid.is_occupied(point.x, point.y):
+            raise ScenarioError(f"{what} ({point.x:.2f}, {point.y:.2f}) is inside an obstacle or off the map")
+
     def default_starts(self) -> dict[str, Pose2D]:
-        """Start poses before --start: the map's (a scenario may place its robots itself)."""
-        return dict(self.map.starts)
+        """Start poses before --start: the map's, plus `office_extra_starts` on the office (a scenario
+        may place its robots itself)."""
+        starts = dict(self.map.starts)
+        for name, (pose, role) in self.office_extra_starts.items():
+            if self.on_office:
+                starts[name] = pose
+            elif name not in self.options.starts:
+                raise ScenarioError(f"{self.name} needs --start {name}=X,Y,YAW ({role}) on map {self.map.name!r}")
+        return starts
 
     def starts(self) -> dict[str, Pose2D]:
         """Start poses: the defaults, overridden by --start."""
@@ -149,9 +171,7 @@ class Scenario(abc.ABC):
                                         f"robots need at least {MIN_START_SEPARATION_M} m")
         kinds = self.sim_config().kinds
         for name, pose in starts.items():
-            if self.map.grid.is_occupied(pose.x, pose.y):
-                raise ScenarioError(f"start of {name} ({pose.x:.2f}, {pose.y:.2f}) is inside an obstacle "
-                                    f"or off the map")
+            self.require_free(f"start of {name}", pose)
             if kinds.get(name, RobotKind.GROUND) is not RobotKind.GROUND:
                 continue  # a drone: its own body, only the centre is checked
             clearance = _clearance(self.map.grid, pose.x, pose.y, START_CLEARANCE_M)

@@ -23,9 +23,7 @@ class FollowScenario(Scenario):
     leader, follower = "robot_1", "robot_2"
 
     def validate(self) -> None:
-        goal = self.goal()
-        if self.map.grid.is_occupied(goal.x, goal.y):
-            raise ScenarioError(f"goal ({goal.x:.2f}, {goal.y:.2f}) is inside an obstacle or off the map")
+        self.require_free("goal", self.goal())
 
     def goal(self) -> Pose2D:
         if self.options.goal is not None:

@@ -30,14 +30,12 @@ class GotoScenario(Scenario):
     def goal(self) -> Pose2D:
         if self.options.goal is not None:
             return self.options.goal
-        if self.map.name == "small_office":
+        if self.on_office:
             return OFFICE_GOTO
         raise ScenarioError(f"map {self.map.name!r} has no default Goto pose: give --goal X,Y")
 
     def validate(self) -> None:
-        goal = self.goal()
-        if self.map.grid.is_occupied(goal.x, goal.y):
-            raise ScenarioError(f"goal ({goal.x:.2f}, {goal.y:.2f}) is inside an obstacle or off the map")
+        self.require_free("goal", self.goal())
 
     def __init__(self, options, map_model) -> None:
         super().__init__(options, map_model)

@@ -13,7 +13,7 @@ from rescuemesh.body import FlightPhase, RobotKind
 from rescuemesh.geometry import Pose2D
 from rescuemesh.protocol import Capability, ResultCode
 from rescuemesh.runtime import SimConfig, SimRuntime
-from rescuemesh.scenarios.base import CommandRequest, Scenario, ScenarioError, Verdict, no_collisions, settled
+from rescuemesh.scenarios.base import CommandRequest, Scenario, Verdict, no_collisions, settled
 
 CARRIER, DRONE = "robot_2", "robot_4"
 #: The drone waits on the floor of the hall, 2.3 m from robot_2.
@@ -29,14 +29,7 @@ class LandOnTopScenario(Scenario):
     summary = "robot_4, a quadrotor, lands on robot_2's top plate on LandOnTop; robot_2 then carries it 2 m"
     time_limit_s = 90.0
     robots = ("robot_1", "robot_2", "robot_3", "robot_4")
-
-    def default_starts(self):
-        starts = dict(self.map.starts)
-        if self.map.name == "small_office":
-            starts[DRONE] = OFFICE_DRONE_START
-        elif DRONE not in self.options.starts:
-            raise ScenarioError(f"land-on-top needs --start robot_4=X,Y,YAW (the drone) on map {self.map.name!r}")
-        return starts
+    office_extra_starts = {DRONE: (OFFICE_DRONE_START, "the drone")}
 
     def sim_config(self) -> SimConfig:
         return replace(super().sim_config(), kinds={DRONE: RobotKind.FLYING})

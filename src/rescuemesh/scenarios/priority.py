@@ -6,12 +6,14 @@ and robot_1 gets CANCELLED with the reason. Owns the script and its criteria; no
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 from rescuemesh.geometry import Pose2D
 from rescuemesh.protocol import Reason, ResultCode
 from rescuemesh.robot import BrainConfig
 from rescuemesh.robot.policy import Rank
 from rescuemesh.runtime import SimConfig, SimRuntime
-from rescuemesh.scenarios.base import CommandRequest, Scenario, ScenarioError, Verdict, no_collisions
+from rescuemesh.scenarios.base import CommandRequest, Scenario, Verdict, no_collisions
 
 RANKS = {1: Rank.TEAM_LEAD, 2: Rank.PEER, 3: Rank.PEER, 4: Rank.OPERATOR}
 #: The operator station stands in the hall's south-west corner (a robot that does not move).
@@ -27,18 +29,10 @@ class PriorityScenario(Scenario):
     summary = "a peer's Goto is TEMPORARILY_REJECTED during a team lead's Follow; the operator's preempts it"
     time_limit_s = 90.0
     robots = ("robot_1", "robot_2", "robot_3", "robot_4")
-
-    def default_starts(self):
-        starts = dict(self.map.starts)
-        if self.map.name == "small_office":
-            starts["robot_4"] = OFFICE_STATION
-        elif "robot_4" not in self.options.starts:
-            raise ScenarioError(f"priority needs --start robot_4=X,Y,YAW (the operator station) on map {self.map.name!r}")
-        return starts
+    office_extra_starts = {"robot_4": (OFFICE_STATION, "the operator station")}
 
     def sim_config(self) -> SimConfig:
-        base = super().sim_config()
-        return SimConfig(**{**base.__dict__, "brain": BrainConfig(ranks=RANKS)})
+        return replace(super().sim_config(), brain=BrainConfig(ranks=RANKS))
 
     def __init__(self, options, map_model) -> None:
         super().__init__(options, map_model)

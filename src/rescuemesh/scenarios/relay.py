@@ -36,7 +36,7 @@ class RelayScenario(Scenario):
     leader, relay, follower = "robot_1", "robot_2", "robot_3"
 
     def default_starts(self) -> dict[str, Pose2D]:
-        if self.map.name == "small_office":
+        if self.on_office:
             return dict(OFFICE_STARTS)
         if not all(name in self.options.starts for name in OFFICE_STARTS):
             raise ScenarioError(f"relay needs --start for robot_1, robot_2 and robot_3 on map {self.map.name!r}: "

@@ -37,14 +37,12 @@ class ShowScanScenario(Scenario):
     def target(self) -> Pose2D:
         if self.options.goal is not None:
             return self.options.goal
-        if self.map.name == "small_office":
+        if self.on_office:
             return OFFICE_TARGET
         raise ScenarioError(f"map {self.map.name!r} has no default position to look at: give --goal X,Y")
 
     def validate(self) -> None:
-        t = self.target()
-        if self.map.grid.is_occupied(t.x, t.y):
-            raise ScenarioError(f"position ({t.x:.2f}, {t.y:.2f}) is inside an obstacle or off the map")
+        self.require_free("position", self.target())
 
     def command(self):
         t = self.target()
