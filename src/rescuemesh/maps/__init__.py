@@ -1,6 +1,7 @@
 """Maps: the office wall file and ROS map_server maps, as walls for physics and a grid for navigation.
 
-Owns: MapModel, OccupancyGrid, load_map. Pure numpy/PyYAML/Pillow: no MuJoCo, no navigation.
+Owns: MapModel, OccupancyGrid, load_map. Pure numpy/PyYAML/Pillow (and SciPy for the bench's
+SLAM-like map, slam_like.py): no MuJoCo, no navigation.
 """
 
 from rescuemesh.maps.grid import OccupancyGrid
