@@ -77,10 +77,10 @@ def _slam_like_figures(seed: int) -> dict:
     starts = dict(office.starts)
     with tempfile.TemporaryDirectory(prefix="rescuemesh-bench-") as folder:
         map_path = write_slam_like_map(Path(folder), seed=seed)
-        boxes = len(load_map(map_path).walls)
         outcome = run_scenario("follow", ScenarioOptions(seed=seed, starts=starts, goal=office.goals["follow_leader"]),
                                map_path=map_path)
     result = outcome.result
+    boxes = len(outcome.runtime.map.walls)
     print(f"SLAM-like map   : {boxes} wall boxes; follow {result['sim_time_s']:.1f} s simulated in "
           f"{result['wall_time_s']:.2f} s -> {result['real_time_factor']}x real time (goal >= {SLAM_RTF_GOAL:g}x)"
           f"{'' if result['success'] else ' (the run FAILED)'}")
