@@ -61,14 +61,6 @@ _WALL_MAP_KEYS = {"name", "wall_height", "walls", "regions", "doorways", "starts
 def load_map(path: str | Path, grid_resolution: float = 0.05) -> MapModel:
     """Load a map file: a rescuemesh wall map (YAML with `walls:`) or a ROS map_server map (YAML with `image:`).
 
-    Raises MapError with a one-line message for a missing, unreadable or malformed file.
-    """
-    return load_map_file(Path(path), grid_resolution)
-
-
-def load_map_file(path: Path, grid_resolution: float) -> MapModel:
-    """Load a rescuemesh wall map or a ROS map_server map from the YAML file at `path`.
-
     `grid_resolution` (m per cell) sets the navigation grid of wall maps. Raises MapError with a
     one-line message naming the file for every problem with the file or its content.
     """
