@@ -109,6 +109,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", type=_folder, default=None, help="output folder (default out/SCENARIO)")
     run.add_argument("--loss", type=float, default=0.0, help="per-frame loss probability in [0, 1) (default 0)")
     run.add_argument("--map", type=Path, default=None, help="map file: rescuemesh wall YAML or ROS map_server YAML")
+    run.add_argument("--robots", type=int, default=None, metavar="N",
+                     help="team size for convoy (2 to 254; default 6); placed automatically behind robot_1")
     run.add_argument("--radius", type=float, default=1.5, help="move-around radius in m (default 1.5)")
     run.add_argument("--start", action="append", default=[], metavar="NAME=X,Y,YAW", help="a robot's start pose")
     run.add_argument("--goal", default=None, metavar="X,Y", help="the leader's goal in follow/stop")
@@ -224,7 +226,7 @@ def _run(args) -> int:
     key, key_source = _team_key(args)
     options = ScenarioOptions(seed=args.seed, loss=args.loss, radius_m=args.radius, starts=_starts(args.start),
                               goal=goal, time_limit_s=args.time_limit, radio=RadioKind(args.radio),
-                              relay=not args.no_relay, outage_s=args.outage, secure=not args.insecure,
+                              relay=not args.no_relay, outage_s=args.outage, robots=args.robots, secure=not args.insecure,
                               team_key=key, key_source=key_source)
     out = _writable_folder(args.out or Path("out") / args.scenario)
     progress = None if args.quiet else _Progress(args.scenario)

@@ -40,6 +40,13 @@ def broken_map(tmp_path):
     (["run", "disconnect", "--outage", "nan"], "--outage"),
     (["run", "disconnect", "--outage", "601"], "--outage"),
     (["run", "follow", "--radio", "wifi"], "invalid choice"),
+    (["run", "follow", "--robots", "5"], "--robots applies to the convoy scenario, not to follow"),
+    (["run", "convoy", "--robots", "1"], "--robots must be from 2 to 254"),
+    (["run", "convoy", "--robots", "-3"], "--robots must be from 2 to 254"),
+    (["run", "convoy", "--robots", "255"], "--robots must be from 2 to 254"),
+    (["run", "convoy", "--robots", "many"], "invalid int"),
+    (["run", "convoy", "--robots", "60"], "room for 45 robots behind the leader"),
+    (["run", "convoy", "--start", "robot_7=1,1,0"], "unknown robot 'robot_7'"),
     (["radio-map"], "--from"),
     (["radio-map", "--from", "2.2,2.2"], "inside a wall"),
     (["radio-map", "--from", "100,2"], "off the map"),
@@ -81,7 +88,7 @@ def test_scenarios_lists_every_scenario_with_one_line_each(capsys):
     assert main(["scenarios"]) == 0
     lines = capsys.readouterr().out.splitlines()
     names = ("follow", "stop", "move-around", "relay", "disconnect", "spoof", "goto", "return", "priority",
-             "show-scan", "show-cam", "land-on-top")
+             "show-scan", "show-cam", "land-on-top", "convoy")
     assert [line.split()[0] for line in lines] == list(names)
 
 

@@ -57,8 +57,8 @@ def test_a_start_inside_a_wall_is_still_refused_as_before(office):
 
 @pytest.mark.parametrize("name", sorted(SCENARIOS))
 def test_every_scenario_s_own_office_starts_pass(name, office):
-    starts = get_scenario(name)(ScenarioOptions(), office).starts()
-    assert set(starts) == set(get_scenario(name).robots)
+    scenario = get_scenario(name)(ScenarioOptions(), office)
+    assert set(scenario.starts()) == set(scenario.robots)
 
 
 def test_the_cli_prints_the_clearance_in_one_line(tmp_path, capsys):

@@ -21,6 +21,32 @@ from rescuemesh.maps.model import Rect  # noqa: E402
 from rescuemesh.maps.raster import rasterise_walls  # noqa: E402
 
 COLOURS = {"robot_1": "#1f77b4", "robot_2": "#d62728", "robot_3": "#2ca02c"}
+#: Further colours of a small team (matplotlib's tab10 without the three above).
+_MORE_COLOURS = ("#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22", "#17becf")
+#: A team larger than this is drawn as a chain: colours run along a colour map in team order, and
+#: the legend names every LEGEND_EVERY-th robot only.
+SMALL_TEAM = 10
+LEGEND_EVERY = 5
+
+
+def robot_colours(names) -> dict[str, str]:
+    """A colour per robot: fixed for robot_1..3, distinct for a team of up to SMALL_TEAM, and along
+    the 'turbo' colour map in team order for a larger team (neighbours in a chain look alike)."""
+    names = list(names)
+    if len(names) <= SMALL_TEAM:
+        spare = iter(_MORE_COLOURS)
+        return {n: COLOURS[n] if n in COLOURS else next(spare) for n in names}
+    cmap = matplotlib.colormaps["turbo"]
+    return {n: matplotlib.colors.to_hex(cmap(0.05 + 0.9 * i / (len(names) - 1))) for i, n in enumerate(names)}
+
+
+def legend_label(names, index: int) -> str | None:
+    """The legend entry of the robot at `index`: every robot of a small team; the first, every
+    LEGEND_EVERY-th and the last of a large one (matplotlib leaves a None label out)."""
+    names = list(names)
+    if len(names) <= SMALL_TEAM or index in (0, len(names) - 1) or (index + 1) % LEGEND_EVERY == 0:
+        return names[index]
+    return None
 ARROW_EVERY_M = 1.0
 #: Room shown around the known part of the map and the paths, in m.
 VIEW_MARGIN_M = 1.0
@@ -114,15 +140,22 @@ def plot_trajectories(rt, map_model, path: Path, *, title: str = "", metrics: di
         skipped = [w["index"] for w in metrics.get("waypoints", []) if w["skipped"]]
         if skipped:
             ax.plot([], [], ls="none", label=f"skipped (in obstacles): {', '.join(map(str, skipped))}")
+    names = list(rt.trajectories)
+    colours = robot_colours(names)
+    large = len(names) > SMALL_TEAM
     for index, (name, samples) in enumerate(rt.trajectories.items()):
-        colour = COLOURS.get(name, None)
+        colour = colours[name]
         xy = np.array([[s.pose.x, s.pose.y] for s in samples])
-        width = max(1.2, 3.4 - 1.1 * index)  # later robots drawn thinner on top: a follower's path stays visible
-        line, = ax.plot(xy[:, 0], xy[:, 1], "-", lw=width, color=colour, label=name, zorder=4 + 0.1 * index)
-        colour = line.get_color()
-        ax.plot(*xy[0], "o", ms=9, mfc="white", mec=colour, mew=2, zorder=5)
-        ax.plot(*xy[-1], "s", ms=8, color=colour, zorder=5)
-        _arrows(ax, xy, colour)
+        # later robots drawn thinner on top: a follower's path stays visible
+        width = 0.9 if large else max(1.2, 3.4 - 1.1 * index)
+        ax.plot(xy[:, 0], xy[:, 1], "-", lw=width, color=colour, label=legend_label(names, index),
+                zorder=4 + 0.1 * index / len(names))
+        ax.plot(*xy[0], "o", ms=5 if large else 9, mfc="white", mec=colour, mew=1.5 if large else 2, zorder=5)
+        ax.plot(*xy[-1], "s", ms=5 if large else 8, color=colour, zorder=5)
+        if not large or index == 0:  # a team of 30 with arrows is a thicket: the leader's show the way
+            _arrows(ax, xy, colour)
+    if large:
+        ax.plot([], [], ls="none", label=f"({len(names)} robots: colour runs\nrobot_1 -> {names[-1]})")
     ax.plot([], [], "o", mfc="white", mec="k", ls="none", label="start")
     ax.plot([], [], "s", color="k", ls="none", label="end")
     if map_model.doorways:

@@ -16,7 +16,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from rescuemesh.protocol import MessageType  # noqa: E402
-from rescuemesh.report.plots import COLOURS  # noqa: E402
+import numpy as np  # noqa: E402
+
+from rescuemesh.report.plots import SMALL_TEAM, legend_label, robot_colours  # noqa: E402
 from rescuemesh.robot import robot_name  # noqa: E402
 
 #: Brain log entries worth a mark on the speed plot, and how to draw them.
@@ -45,34 +47,29 @@ def _kind(record) -> str:
 def plot_timeline(rt, path: Path, *, title: str = "", metrics: dict | None = None) -> Path:
     """Draw the timeline; a metrics `outage_start_s`/`outage_end_s` pair is shaded as a radio outage."""
     names = list(rt.trajectories)
-    fig, (ax_speed, ax_radio) = plt.subplots(2, 1, figsize=(11, 6.5), dpi=110, sharex=True,
+    large = len(names) > SMALL_TEAM
+    height = 6.5 if not large else 4.0 + 0.16 * len(names)
+    fig, (ax_speed, ax_radio) = plt.subplots(2, 1, figsize=(11, height), dpi=110, sharex=True,
                                              gridspec_kw={"height_ratios": [1.0, 1.3]})
-    seen_labels: set[str] = set()
-    for name in names:
-        samples = rt.trajectories[name]
-        colour = COLOURS.get(name)
-        ax_speed.plot([s.time_s for s in samples], [s.speed for s in samples], color=colour, lw=1.4, label=name)
-        for event in rt.brains[name].log:
-            if event.kind not in EVENT_MARKS:
-                continue
-            marker, label = EVENT_MARKS[event.kind]
-            speed = min(samples, key=lambda s: abs(s.time_s - event.time_s)).speed
-            ax_speed.plot(event.time_s, speed, marker=marker, color=colour, ms=8, mec="k", mew=0.6, ls="none",
-                          label=None if label in seen_labels else label, zorder=5)
-            seen_labels.add(label)
+    if large:
+        _speed_rows(fig, ax_speed, rt, names)
+    else:
+        _speed_lines(ax_speed, rt, names)
     metrics = metrics or {}
     if metrics.get("outage_start_s") is not None:
         end = metrics.get("outage_end_s") or rt.time
         for ax in (ax_speed, ax_radio):
             ax.axvspan(metrics["outage_start_s"], end, color="0.85", zorder=0,
                        label="robot_1's radio off" if ax is ax_speed else None)
-    ax_speed.set_ylabel("speed [m/s]")
-    ax_speed.set_ylim(bottom=-0.02)
-    ax_speed.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
+    if not large:
+        ax_speed.set_ylabel("speed [m/s]")
+        ax_speed.set_ylim(bottom=-0.02)
+    ax_speed.legend(loc="upper left", bbox_to_anchor=(1.09 if large else 1.01, 1.0), fontsize=8, frameon=False)
     ax_speed.grid(True, lw=0.3, alpha=0.5)
     ax_speed.set_title(title, fontsize=11)
 
-    lanes = {(name, kind): i for i, (name, kind) in enumerate((n, k) for n in names for k in KINDS)}
+    kinds = ("all",) if large else KINDS  # a large team: one lane per radio, every kind
+    lanes = {(name, kind): i for i, (name, kind) in enumerate((n, k) for n in names for k in kinds)}
     styles = {  # mark kind -> marker style
         "heard": dict(marker="|", color="0.35", ms=9, label="heard by its destination"),
         "resend": dict(marker="|", color="#ff7f0e", ms=11, mew=2, label="heard (resend)"),
@@ -82,7 +79,7 @@ def plot_timeline(rt, path: Path, *, title: str = "", metrics: dict | None = Non
     }
     points: dict[str, tuple[list[float], list[float]]] = {k: ([], []) for k in styles}
     for record in rt.medium.records or []:
-        lane = lanes.get((robot_name(record.transmitter), _kind(record)))
+        lane = lanes.get((robot_name(record.transmitter), "all" if large else _kind(record)))
         if lane is None:
             continue
         heard = record.dst_heard if record.dst_heard is not None else record.heard_by > 0
@@ -97,15 +94,60 @@ def plot_timeline(rt, path: Path, *, title: str = "", metrics: dict | None = Non
         xs, ys = points[key]
         if xs:
             ax_radio.plot(xs, ys, ls="none", **style)
-    ax_radio.set_yticks(list(lanes.values()), [f"{name}  {kind}" for name, kind in lanes], fontsize=7)
-    for boundary in range(len(KINDS), len(lanes), len(KINDS)):
-        ax_radio.axhline(boundary - 0.5, color="0.6", lw=0.6)
+    ax_radio.set_yticks(list(lanes.values()), [name if large else f"{name}  {kind}" for name, kind in lanes],
+                        fontsize=7 if len(lanes) <= 40 else 5)
+    for boundary in range(len(kinds), len(lanes), len(kinds)):
+        ax_radio.axhline(boundary - 0.5, color="0.6", lw=0.6 if not large else 0.3)
     ax_radio.set_ylim(-0.6, len(lanes) - 0.4)
     ax_radio.set_xlabel("simulated time [s]")
-    ax_radio.set_title("frames on the air, by radio and kind (one mark per transmission)", fontsize=9)
+    ax_radio.set_title("frames on the air, by radio" + ("" if large else " and kind") + " (one mark per transmission)",
+                       fontsize=9)
     ax_radio.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
     ax_radio.grid(True, axis="x", lw=0.3, alpha=0.5)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
     return path
+
+
+def _speed_lines(ax, rt, names) -> None:
+    """A small team: one speed curve per robot, its key events marked on it."""
+    colours = robot_colours(names)
+    seen_labels: set[str] = set()
+    for index, name in enumerate(names):
+        samples = rt.trajectories[name]
+        colour = colours[name]
+        ax.plot([s.time_s for s in samples], [s.speed for s in samples], color=colour, lw=1.4,
+                label=legend_label(names, index))
+        for event in rt.brains[name].log:
+            if event.kind not in EVENT_MARKS:
+                continue
+            marker, label = EVENT_MARKS[event.kind]
+            speed = min(samples, key=lambda s: abs(s.time_s - event.time_s)).speed
+            ax.plot(event.time_s, speed, marker=marker, color=colour, ms=8, mec="k", mew=0.6, ls="none",
+                    label=None if label in seen_labels else label, zorder=5)
+            seen_labels.add(label)
+
+
+def _speed_rows(fig, ax, rt, names) -> None:
+    """A large team: speed as a heat map, one row per robot (robot_1 on top), key events marked on
+    each robot's row (30 curves on one axis would be a tangle)."""
+    times = np.array([s.time_s for s in rt.trajectories[names[0]]])
+    speeds = np.array([[s.speed for s in rt.trajectories[n]][:len(times)] for n in names])
+    t_end = times[-1] if len(times) > 1 else 1.0
+    image = ax.imshow(speeds, aspect="auto", cmap="viridis", interpolation="nearest", origin="upper",
+                      extent=(times[0], t_end, len(names) - 0.5, -0.5), vmin=0.0)
+    fig.colorbar(image, ax=ax, pad=0.01, fraction=0.03, label="speed [m/s]")
+    seen_labels: set[str] = set()
+    for row, name in enumerate(names):
+        for event in rt.brains[name].log:
+            if event.kind not in EVENT_MARKS:
+                continue
+            marker, label = EVENT_MARKS[event.kind]
+            ax.plot(event.time_s, row, marker=marker, color="white", ms=5, mec="k", mew=0.5, ls="none",
+                    label=None if label in seen_labels else label, zorder=5)
+            seen_labels.add(label)
+    ticks = [i for i in range(len(names)) if legend_label(names, i)]
+    ax.set_yticks(ticks, [names[i] for i in ticks], fontsize=7)
+    ax.set_ylim(len(names) - 0.5, -0.5)
+    ax.set_ylabel("robot")

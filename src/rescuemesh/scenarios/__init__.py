@@ -4,6 +4,7 @@ Owns: the registry. Must not know: the command line, output files.
 """
 
 from rescuemesh.scenarios.base import Scenario, ScenarioError, ScenarioOptions, Verdict
+from rescuemesh.scenarios.convoy import ConvoyScenario
 from rescuemesh.scenarios.disconnect import DisconnectScenario
 from rescuemesh.scenarios.follow import FollowScenario
 from rescuemesh.scenarios.goto import GotoScenario, ReturnScenario
@@ -19,7 +20,7 @@ SCENARIOS: dict[str, type[Scenario]] = {
     cls.name: cls
     for cls in (FollowScenario, StopScenario, MoveAroundScenario, RelayScenario, DisconnectScenario, SpoofScenario,
                 GotoScenario, ReturnScenario, PriorityScenario, ShowScanScenario, ShowCamScenario,
-                LandOnTopScenario)
+                LandOnTopScenario, ConvoyScenario)
 }
 
 

@@ -47,6 +47,7 @@ class ScenarioOptions:
     radio: RadioKind = RadioKind.BLE
     relay: bool = True
     outage_s: float | None = None  # disconnect: how long robot_1's radio is silent
+    robots: int | None = None  # --robots: team size, for scenarios that take one (None: the scenario's default)
     secure: bool = True  # authenticated frames (False: --insecure, CRC only)
     team_key: bytes | None = None  # --key FILE; None: derived from the seed (simulation only)
     key_source: str = "derived from the seed (simulation only)"
@@ -104,6 +105,8 @@ class Scenario(abc.ABC):
 
     #: Whether --outage means anything to this scenario.
     takes_outage: ClassVar[bool] = False
+    #: Whether --robots N means anything to this scenario (it then sets `robots` from it).
+    takes_team_size: ClassVar[bool] = False
     #: The team of this scenario.
     robots: ClassVar[tuple[str, ...]] = ROBOTS
     #: Robots this scenario adds to the map's starts on the packaged office: name -> (pose, what
@@ -115,6 +118,9 @@ class Scenario(abc.ABC):
         self.map = map_model
         if options.outage_s is not None and not self.takes_outage:
             raise ScenarioError(f"--outage applies to the disconnect scenario, not to {self.name}")
+        if options.robots is not None and not self.takes_team_size:
+            raise ScenarioError(f"--robots applies to the convoy scenario, not to {self.name} (its team is "
+                                f"{', '.join(self.robots)})")
         self.validate()
 
     @property
@@ -241,3 +247,17 @@ def mean_distance(a: list[TrajectorySample], b: list[TrajectorySample], t0: floa
     if not pairs:
         return math.nan
     return sum(p.distance_to(q) for p, q in pairs) / len(pairs)
+
+
+def why_not(brain, behaviour: str) -> str:
+    """' (the reason)' when the last `behaviour` ended in anything but DONE, '' otherwise: the
+    summary says why a leader did not get there ("no path") instead of a bare unchecked box."""
+    last = next((f for f in reversed(brain.finished) if f.name == behaviour), None)
+    if last is None or last.result == ResultCode.DONE:
+        return ""
+    return f" ({last.result.name}: {last.reason})" if last.reason else f" ({last.result.name})"
+
+
+def last_result(brain, behaviour: str) -> ResultCode | None:
+    """The final result of the last `behaviour` the brain finished, or None."""
+    return next((f.result for f in reversed(brain.finished) if f.name == behaviour), None)

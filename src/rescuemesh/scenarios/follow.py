@@ -9,8 +9,8 @@ from __future__ import annotations
 from rescuemesh.geometry import Pose2D
 from rescuemesh.protocol import ResultCode
 from rescuemesh.runtime import SimRuntime
-from rescuemesh.scenarios.base import (CommandRequest, Scenario, ScenarioError, Verdict, mean_distance, no_collisions,
-                                       settled)
+from rescuemesh.scenarios.base import (CommandRequest, Scenario, ScenarioError, Verdict, last_result, mean_distance,
+                                       no_collisions, settled, why_not)
 
 #: On a map with no named regions, follow succeeds when the follower ends this close to the leader (m).
 FOLLOWER_END_DISTANCE_M = 2.0
@@ -52,7 +52,7 @@ class FollowScenario(Scenario):
             return
         if self.arrived_s is None and leader.running is None:
             self.arrived_s = now
-            self._leader_result = _last_result(leader, "navigate")
+            self._leader_result = last_result(leader, "navigate")
         if self.arrived_s is not None and self.settled_s is None and settled(rt, self.follower, self.arrived_s):
             self.settled_s = now
 
@@ -65,7 +65,7 @@ class FollowScenario(Scenario):
         goal = self.goal()
         goal_region = self.map.region_of(goal.x, goal.y)
         criteria = [("Follow confirmed ACCEPTED", self.accepted_s is not None),
-                    (f"leader reached its goal{_why_not(rt.brain(self.leader), 'navigate')}",
+                    (f"leader reached its goal{why_not(rt.brain(self.leader), 'navigate')}",
                      self._leader_result == ResultCode.DONE)]
         passed_doorway = None
         if goal_region is not None and self.map.regions:
@@ -94,20 +94,6 @@ class FollowScenario(Scenario):
             "goal_region": goal_region,
         }
         return Verdict(all(ok for _, ok in criteria), criteria, metrics)
-
-
-def _why_not(brain, behaviour: str) -> str:
-    """' (the reason)' when the last `behaviour` ended in anything but DONE, '' otherwise: the
-    summary says why a leader did not get there ("no path") instead of a bare unchecked box."""
-    last = next((f for f in reversed(brain.finished) if f.name == behaviour), None)
-    if last is None or last.result == ResultCode.DONE:
-        return ""
-    return f" ({last.result.name}: {last.reason})" if last.reason else f" ({last.result.name})"
-
-
-def _last_result(brain, behaviour: str) -> ResultCode | None:
-    """The final result of the last `behaviour` the brain finished, or None."""
-    return next((f.result for f in reversed(brain.finished) if f.name == behaviour), None)
 
 
 def _round(value: float, digits: int = 3):

@@ -1,0 +1,130 @@
+"""Teams of N robots: names and automatic start poses in free space.
+
+Owns: team names (robot_1 .. robot_N), the team size limits, and `place_behind`, which puts a team
+on a lattice in free space behind its leader, ordered along the way to a goal. Must not know:
+missions, the simulator, the radio.
+
+How `place_behind` works: every free cell gets its path distance to the goal (scikit-image's
+MCP_Geometric over the cells a TurtleBot 2's centre may occupy with `clearance_m` to spare). Lattice
+points `spacing_m` apart, aligned on the leader's start, are candidates when they are reachable,
+no nearer the goal than the leader (nobody starts ahead of it) and, if `allowed` is given, inside one
+of those rectangles. The N - 1 candidates nearest the leader (by path) are taken, and numbered by
+their distance to the goal: robot_2 is the one closest to the goal, so each robot starts behind
+the robot it will follow.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from skimage.graph import MCP_Geometric
+
+from rescuemesh.geometry import Pose2D
+from rescuemesh.maps.grid import OccupancyGrid
+from rescuemesh.maps.model import Rect
+from rescuemesh.robot.naming import MAX_ROBOT_ADDRESS
+
+#: Largest team a scenario accepts: every robot needs a unicast address (robot/naming.py).
+MAX_TEAM = MAX_ROBOT_ADDRESS
+#: Start lattice spacing in m: a TurtleBot 2 (0.354 m across) with about a follow distance between.
+TEAM_SPACING_M = 0.95
+#: Distance in m a placed robot's centre keeps from any obstacle: the footprint radius (0.177 m) and
+#: room to turn in place next to its neighbours.
+TEAM_CLEARANCE_M = 0.3
+
+
+class PlacementError(ValueError):
+    """The map has no room for the team as asked; the message says how many fit."""
+
+
+def team_names(count: int) -> tuple[str, ...]:
+    """robot_1 .. robot_`count`."""
+    return tuple(f"robot_{k}" for k in range(1, count + 1))
+
+
+def place_behind(grid: OccupancyGrid, leader: Pose2D, goal: tuple[float, float], count: int, *,
+                 spacing_m: float = TEAM_SPACING_M, clearance_m: float = TEAM_CLEARANCE_M,
+                 allowed: Sequence[Rect] = ()) -> list[Pose2D]:
+    """`count` start poses: the leader's first, then count - 1 lattice points behind it (see the
+    module docstring), each facing the way to the goal. PlacementError when fewer fit."""
+    if count < 1:
+        raise PlacementError(f"a team needs at least one robot, got {count}")
+    free = _clearance_mask(grid, clearance_m)
+    to_goal, toward_goal = _path_distance(grid, free, goal)
+    leader_cell = grid.world_to_cell(leader.x, leader.y)
+    if not _inside(grid, leader_cell) or not np.isfinite(to_goal[leader_cell]):
+        raise PlacementError(f"the leader's start ({leader.x:.2f}, {leader.y:.2f}) has no path to the goal "
+                             f"({goal[0]:.2f}, {goal[1]:.2f}) with {clearance_m} m to spare")
+    from_leader, _ = _path_distance(grid, free, (leader.x, leader.y))
+    candidates = []
+    for x, y in _lattice(grid, leader, spacing_m):
+        cell = grid.world_to_cell(x, y)
+        if not _inside(grid, cell) or not free[cell] or (x, y) == (leader.x, leader.y):
+            continue
+        if allowed and not any(r.contains(x, y) for r in allowed):
+            continue
+        if not (np.isfinite(to_goal[cell]) and to_goal[cell] >= to_goal[leader_cell]):
+            continue
+        candidates.append((float(from_leader[cell]), float(to_goal[cell]), x, y))
+    if len(candidates) < count - 1:
+        raise PlacementError(f"room for {len(candidates) + 1} robots behind the leader here "
+                             f"({spacing_m} m apart, {clearance_m} m from walls), {count} asked")
+    chosen = sorted(candidates)[:count - 1]
+    chosen.sort(key=lambda c: (c[1], c[0]))
+    poses = [leader]
+    for _, _, x, y in chosen:
+        poses.append(Pose2D(x, y, _heading_to_goal(grid, toward_goal, x, y)))
+    return poses
+
+
+def _inside(grid: OccupancyGrid, cell: tuple[int, int]) -> bool:
+    return grid.in_bounds(*cell)
+
+
+def _clearance_mask(grid: OccupancyGrid, clearance_m: float) -> np.ndarray:
+    """Cells whose centre is at least `clearance_m` from every obstacle cell's surface."""
+    from scipy import ndimage
+
+    occupied = np.asarray(grid.occupied, dtype=bool)
+    if not occupied.any():
+        return np.ones(occupied.shape, dtype=bool)
+    clearance = ndimage.distance_transform_edt(~occupied) * grid.resolution - 0.5 * grid.resolution
+    return clearance >= clearance_m
+
+
+def _path_distance(grid: OccupancyGrid, free: np.ndarray, origin: tuple[float, float]):
+    """Path length in m from `origin` to every cell through `free` cells (inf where unreachable),
+    and the MCP whose traceback(cell) leads from a cell back to `origin` (None if unreachable)."""
+    cell = grid.world_to_cell(*origin)
+    if not _inside(grid, cell) or not free[cell]:
+        return np.full(free.shape, np.inf), None
+    mcp = MCP_Geometric(np.where(free, 1.0, np.inf), fully_connected=True)
+    distances, _ = mcp.find_costs([cell])
+    return distances * grid.resolution, mcp
+
+
+def _lattice(grid: OccupancyGrid, anchor: Pose2D, spacing_m: float):
+    """Points `spacing_m` apart on a square lattice through `anchor`, covering the grid."""
+    rows, cols = grid.shape
+    x0, y0 = grid.origin_x, grid.origin_y
+    x1, y1 = x0 + cols * grid.resolution, y0 + rows * grid.resolution
+    i_lo, i_hi = math.ceil((x0 - anchor.x) / spacing_m), math.floor((x1 - anchor.x) / spacing_m)
+    j_lo, j_hi = math.ceil((y0 - anchor.y) / spacing_m), math.floor((y1 - anchor.y) / spacing_m)
+    for i in range(i_lo, i_hi + 1):
+        for j in range(j_lo, j_hi + 1):
+            yield round(anchor.x + i * spacing_m, 3), round(anchor.y + j * spacing_m, 3)
+
+
+#: A placed robot faces the point this far (m) along its path to the goal.
+HEADING_LOOKAHEAD_M = 1.0
+
+
+def _heading_to_goal(grid: OccupancyGrid, toward_goal, x: float, y: float) -> float:
+    """Yaw in rad toward the point HEADING_LOOKAHEAD_M along the shortest path from (x, y) to the goal."""
+    row, col = grid.world_to_cell(x, y)
+    path = toward_goal.traceback((row, col))[::-1]  # skimage lists it from the goal to (row, col)
+    ahead = path[min(len(path) - 1, max(1, round(HEADING_LOOKAHEAD_M / grid.resolution)))]
+    dr, dc = ahead[0] - row, ahead[1] - col
+    return math.atan2(dr, dc) if (dr or dc) else 0.0
