@@ -73,6 +73,34 @@ def test_update_goal_moves_the_goal_without_a_result(room_costmap):
     assert not nav.update_goal(DOOR_GOAL, run.now)
 
 
+def test_a_goal_nudged_a_little_extends_the_path_without_a_new_plan(room_costmap):
+    # a follower's goal moves ~0.5 m per PoseUpdate: that used to throw the path away and plan again
+    nav = NavigateToPose(room_costmap)
+    nav.send_goal(DOOR_GOAL, 0.0)
+    run = drive(nav, Pose2D(1.0, 1.0, 0.0), 0.0, 0.5)
+    planned = nav.path
+    nudged = Pose2D(DOOR_GOAL.x, DOOR_GOAL.y + 0.5, DOOR_GOAL.yaw)
+    assert nav.update_goal(nudged, run.now)
+    assert nav.path is not None and nav.path.points[:-1].tolist() == planned.points.tolist()
+    assert nav.path.end.tolist() == [nudged.x, nudged.y]
+    drive(nav, run.pose, run.now, 30.0)
+    assert [r.status for r in results(nav)] == [GoalStatus.SUCCEEDED]
+
+
+def test_a_goal_moved_far_or_behind_a_wall_is_planned_again(room_costmap):
+    nav = NavigateToPose(room_costmap)
+    nav.send_goal(DOOR_GOAL, 0.0)
+    run = drive(nav, Pose2D(1.0, 1.0, 0.0), 0.0, 0.5)
+    assert nav.update_goal(Pose2D(1.0, 3.0, 0.0), run.now)  # 4 m from the path's end: no extension
+    assert nav.path is None
+    east_of_wall = Pose2D(3.6, 3.0, 0.0)  # the wall is x 3.0..3.1 (doorway y 1.5..2.5)
+    nav.send_goal(east_of_wall, run.now)
+    run = drive(nav, run.pose, run.now, 0.5)
+    assert nav.path is not None and nav.path.end.tolist() == [3.6, 3.0]
+    assert nav.update_goal(Pose2D(2.7, 3.0, 0.0), run.now)  # 0.9 m away, but through the wall
+    assert nav.path is None
+
+
 def test_cancel_stops_and_reports_canceled(room_costmap):
     nav = NavigateToPose(room_costmap)
     gid = nav.send_goal(DOOR_GOAL, 0.0)

@@ -59,6 +59,10 @@ class NavParams:
     yaw_tolerance: float = 0.3  # rad
     replan_period_s: float = 1.0  # s between routine replans
     min_replan_interval_s: float = 0.25  # s: a path found blocked is replanned at most this often
+    #: m: a goal moved (update_goal) at most this far from the path's end, with a free straight
+    #: segment to it, extends the path instead of replanning it (a follower's leader moves a little
+    #: per PoseUpdate); routine replans still come every replan_period_s.
+    extend_max_m: float = 1.0
     stuck_timeout_s: float = 10.0  # s without progress -> ABORTED "stuck"
     progress_radius_m: float = 0.25  # m: moving this far counts as progress (Nav2 progress checker)
     progress_gain_m: float = 0.05  # m: getting this much closer to the goal counts as progress
@@ -177,14 +181,39 @@ class NavigateToPose:
     def update_goal(self, goal: Pose2D, now: float) -> bool:
         """Move the active goal to `goal` without preempting it (Nav2's goal updater, for following).
 
-        Keeps the id and options and replans on the next step. False (and no effect) when idle.
+        Keeps the id and options. A goal moved at most `extend_max_m` from the path's end, reachable
+        from it in a straight line on the static costmap, extends the path by that segment; any other
+        move replans on the next step. False (and no effect) when idle.
         """
         g = self._goal
         if g is None:
             return False
-        g.pose, g.path, g.s_progress, g.xy_reached, g.best_remaining = goal, None, 0.0, False, math.inf
+        extended = self._extended(g.path, goal)
+        g.pose, g.xy_reached, g.best_remaining = goal, False, math.inf
+        if extended is None:
+            g.path, g.s_progress = None, 0.0
+        else:
+            g.path = extended  # the same points up to the old end: s_progress still holds
         self._obstacle_costmap = None
         return True
+
+    def _extended(self, path: Path | None, goal: Pose2D) -> Path | None:
+        """`path` with a straight segment on to `goal`, when the goal is within extend_max_m of its end
+        and the segment crosses no lethal cell of the static costmap; else None."""
+        if path is None:
+            return None
+        end = path.end
+        gap = math.hypot(goal.x - end[0], goal.y - end[1])
+        if gap > self.params.extend_max_m:
+            return None
+        if gap < 1e-6:
+            return path
+        n = max(2, math.ceil(gap / (0.5 * self.costmap.resolution)) + 1)
+        t = np.linspace(0.0, 1.0, n)
+        xs, ys = end[0] + t * (goal.x - end[0]), end[1] + t * (goal.y - end[1])
+        if self.costmap.any_lethal(xs, ys):
+            return None
+        return Path.from_points(np.vstack([path.points, [[goal.x, goal.y]]]))
 
     def cancel(self, now: float) -> None:
         """End the active goal CANCELED "canceled"; no-op when idle."""
