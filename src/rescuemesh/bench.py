@@ -24,9 +24,13 @@ from rescuemesh.runtime.mesh_bench import chain_confirm_latency, delivery_ratio
 from rescuemesh.scenarios import ScenarioOptions
 from rescuemesh.scenarios.runner import run_scenario
 
-#: Issue 8's goals: the three-robot follow at 100x real time on the office, 50x on a SLAM-like map.
+#: Issue 8's goals: the three-robot follow at 100x real time on the office, 50x on a SLAM-like map,
+#: the 30-robot convoy at 10x.
 RTF_GOAL = 100.0
 SLAM_RTF_GOAL = 50.0
+CONVOY_RTF_GOAL = 10.0
+#: Team sizes of the scaling series (the convoy scenario on the office).
+TEAM_SIZES = (3, 10, 30)
 CODEC_GOAL_FPS = 100_000
 SEAL_GOAL_FPS = 50_000
 #: Bluetooth Mesh measurements (docs/mesh.md): TI SWRA732 19-33 ms for 1 hop; under 200 ms for 6.
@@ -63,6 +67,7 @@ def run_bench(out: Path, *, seed: int = 0) -> int:
     print(f"largest frame   : {figures['follow_max_frame_bytes']} bytes in this run; "
           f"{sizes[widest]} bytes for any message ({widest}; budget {MAX_CONTROL_FRAME_BYTES})")
     figures["slam_like"] = _slam_like_figures(seed)
+    figures["teams"] = _team_figures(seed)
     figures["network"] = _network_figures(seed)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(figures, indent=2) + "\n")
@@ -87,6 +92,24 @@ def _slam_like_figures(seed: int) -> dict:
     return {"wall_boxes": boxes, "follow_real_time_factor": result["real_time_factor"],
             "follow_sim_time_s": result["sim_time_s"], "follow_wall_time_s": result["wall_time_s"],
             "follow_success": result["success"], "goal_real_time_factor": SLAM_RTF_GOAL}
+
+
+def _team_figures(seed: int) -> dict:
+    """How cost grows with the team: the convoy of 3, 10 and 30 robots on the office, its real-time
+    factor and wall time per simulated second per robot."""
+    teams = {}
+    for count in TEAM_SIZES:
+        result = run_scenario("convoy", ScenarioOptions(seed=seed, robots=count)).result
+        per_robot_ms = 1000.0 * result["wall_time_s"] / max(result["sim_time_s"], 1e-9) / count
+        teams[str(count)] = {"real_time_factor": result["real_time_factor"], "sim_time_s": result["sim_time_s"],
+                             "wall_time_s": result["wall_time_s"], "success": result["success"],
+                             "wall_ms_per_sim_s_per_robot": round(per_robot_ms, 2)}
+        goal = f" (goal >= {CONVOY_RTF_GOAL:g}x)" if count == 30 else ""
+        print(f"convoy {count:2d} robots: {result['sim_time_s']:5.1f} s simulated in {result['wall_time_s']:6.2f} s -> "
+              f"{result['real_time_factor']:5.1f}x real time{goal}; {per_robot_ms:5.2f} ms wall per simulated s "
+              f"per robot{'' if result['success'] else ' (the run FAILED)'}")
+    teams["goal_real_time_factor_30"] = CONVOY_RTF_GOAL
+    return teams
 
 
 def _network_figures(seed: int) -> dict:
