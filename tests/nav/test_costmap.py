@@ -82,3 +82,18 @@ def test_inflation_radius_below_inscribed_is_rejected():
     with pytest.raises(ValueError):
         Costmap(OccupancyGrid(np.zeros((4, 4), bool), 0.05, 0.0, 0.0), inscribed_radius=0.3, inflation_radius=0.2)
     assert math.isinf(Costmap(OccupancyGrid(np.zeros((4, 4), bool), 0.05, 0.0, 0.0)).clearance_at(0.1, 0.1))
+
+
+def test_a_blocked_path_check_answers_as_the_stamped_layer_without_stamping_the_map(room_costmap):
+    # any_lethal on a fresh obstacle costmap used to copy and stamp the whole map for each scan
+    rng = np.random.default_rng(5)
+    for trial in range(40):
+        points = rng.uniform((0.5, 0.5), (5.5, 3.5), size=(int(rng.integers(1, 30)), 2))
+        xs, ys = rng.uniform(0.3, 5.7, 25), rng.uniform(0.3, 3.7, 25)
+        lazy = room_costmap.with_obstacles(points, float(trial))
+        answer = lazy.any_lethal(xs, ys)
+        assert lazy._cost is None, "the check stamped the whole map"
+        stamped = room_costmap.with_obstacles(points, float(trial))
+        assert answer == bool((stamped.costs_at(np.stack([xs, ys], axis=1)) >= LETHAL).any())
+        for x, y in zip(xs, ys):  # point by point too: the near/far edge of the lethal disc
+            assert lazy.any_lethal(np.array([x]), np.array([y])) == (stamped.cost_at(x, y) >= LETHAL)

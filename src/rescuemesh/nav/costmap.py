@@ -76,18 +76,23 @@ class Costmap:
             clearance = np.full(occupied.shape, np.inf)
         self.static_clearance = clearance.astype(np.float32)
         self.static_cost = inflation_cost(clearance, self.inscribed_radius, self.inflation_radius, self.cost_scaling)
-        self.cost = self.static_cost
-        self.lethal = self._static_lethal = self.cost >= LETHAL
+        self._cost = self.static_cost
+        self._lethal = self._static_lethal = self.static_cost >= LETHAL
+        self._obstacle_cells = np.zeros(0, dtype=np.int64)
         self.obstacle_points = np.zeros((0, 2))
         self.obstacle_stamp: float | None = None
         self._kernel = self._make_kernel()
+        dr, dc, kval = self._kernel
+        n = int(max(np.abs(dr).max(), np.abs(dc).max())) if len(dr) else 0
+        self._lethal_disc = np.zeros((2 * n + 1, 2 * n + 1), dtype=bool)  # kernel offsets that are LETHAL
+        self._lethal_disc[dr[kval >= LETHAL] + n, dc[kval >= LETHAL] + n] = True
 
     # -- geometry -------------------------------------------------------------------------------
 
     @property
     def shape(self) -> tuple[int, int]:
         """(rows, cols)."""
-        return self.cost.shape
+        return self.static_cost.shape
 
     def world_to_cell(self, x: float, y: float) -> tuple[int, int]:
         """(row, col) of the cell holding map point (x, y) m; may lie outside the grid."""
@@ -135,7 +140,21 @@ class Costmap:
             flat = np.ravel_multi_index((rows, cols), self.shape)  # bounds-checked in one call
         except ValueError:
             return True  # a point off the grid
-        return bool(self.lethal.reshape(-1)[flat].any())
+        if self._lethal is not None:
+            return bool(self._lethal.reshape(-1)[flat].any())
+        if self._static_lethal.reshape(-1)[flat].any():
+            return True
+        return self._near_obstacle(rows, cols)
+
+    def _near_obstacle(self, rows: np.ndarray, cols: np.ndarray) -> bool:
+        """Whether any cell (rows[i], cols[i]) lies in the lethal part of an obstacle cell's kernel:
+        the same answer as the stamped array, without stamping the whole map."""
+        w = self.shape[1]
+        dr = rows[:, None] - (self._obstacle_cells // w)[None, :]
+        dc = cols[:, None] - (self._obstacle_cells % w)[None, :]
+        n = self._lethal_disc.shape[0] // 2
+        near = (np.abs(dr) <= n) & (np.abs(dc) <= n)
+        return bool(near.any() and self._lethal_disc[dr[near] + n, dc[near] + n].any())
 
     def clearance_at(self, x: float, y: float) -> float:
         """Distance in m from (x, y) to the nearest static map obstacle (0 outside the grid)."""
@@ -177,21 +196,36 @@ class Costmap:
         keep = inside.copy()
         keep[inside] = self.static_clearance[rows[inside], cols[inside]] >= 1.5 * self.resolution
         out.obstacle_points = pts[keep]
+        out._cost = out._lethal = None  # built on first use: a blocked-path check does not need them
+        out._obstacle_cells = np.unique(rows[keep] * self.shape[1] + cols[keep])
         if not keep.any():
-            out.cost = self.static_cost
-            out.lethal = self._static_lethal
-            return out
-        h, w = self.shape
-        flat = np.unique(rows[keep] * w + cols[keep])
+            out._cost, out._lethal = self.static_cost, self._static_lethal
+        return out
+
+    @property
+    def cost(self) -> np.ndarray:
+        if self._cost is None:
+            self._stamp_obstacles()
+        return self._cost
+
+    @property
+    def lethal(self) -> np.ndarray:
+        if self._lethal is None:
+            self._stamp_obstacles()
+        return self._lethal
+
+    def _stamp_obstacles(self) -> None:
+        """The full cost array: the static layer with every obstacle cell's inflation kernel stamped."""
+        h, w = self.static_cost.shape
+        flat = self._obstacle_cells
         dr, dc, kval = self._kernel
         rr = (flat // w)[:, None] + dr[None, :]
         cc = (flat % w)[:, None] + dc[None, :]
         ok = (rr >= 0) & (rr < h) & (cc >= 0) & (cc < w)
         cost = self.static_cost.copy()
         np.maximum.at(cost.reshape(-1), (rr * w + cc)[ok], np.broadcast_to(kval, rr.shape)[ok])
-        out.cost = cost
-        out.lethal = cost >= LETHAL
-        return out
+        self._cost = cost
+        self._lethal = cost >= LETHAL
 
     def _make_kernel(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Cell offsets (drow, dcol) and costs of one obstacle cell, inflated: the stamp for scan points."""
