@@ -1,3 +1,4 @@
+import math
 import numpy as np
 import pytest
 from navworld import room_with_door
@@ -105,3 +106,33 @@ def test_straight_planner_refuses_to_cross_a_wall(room_costmap):
     planner = make_planner("straight")
     assert planner.plan(room_costmap, Pose2D(1.0, 2.0), Pose2D(2.0, 2.5)) is not None
     assert planner.plan(room_costmap, Pose2D(1.0, 1.0), Pose2D(5.0, 1.0)) is None
+
+
+def _big_hall(with_long_wall: bool) -> Costmap:
+    """100 m x 100 m at 0.05 m (4 M cells); optionally a wall at x = 50 m from y = 0 to 95 m."""
+    occ = np.zeros((2000, 2000), dtype=bool)
+    occ[:2, :] = occ[-2:, :] = occ[:, :2] = occ[:, -2:] = True
+    if with_long_wall:
+        occ[:1900, 1000:1004] = True
+    return Costmap(OccupancyGrid(occ, 0.05, 0.0, 0.0))
+
+
+def test_a_short_plan_on_a_large_map_searches_a_window_not_the_map():
+    # a 2 m plan on a 100 m map used to build and search the whole 1000 x 1000 coarse grid
+    costmap = _big_hall(with_long_wall=False)
+    planner = MCPPlanner()
+    path = planner.plan(costmap, Pose2D(20.0, 20.0, 0.0), Pose2D(22.0, 21.0, 0.0))
+    assert path is not None and path.length_m == pytest.approx(math.hypot(2.0, 1.0), abs=0.05)
+    window = planner._graph[0]
+    searched = (window[1] - window[0]) * (window[3] - window[2])
+    assert searched < 0.05 * 1000 * 1000
+
+
+def test_a_detour_wider_than_the_window_is_still_found_on_the_whole_map():
+    costmap = _big_hall(with_long_wall=True)
+    planner = MCPPlanner()
+    start, goal = Pose2D(49.0, 10.0, 0.0), Pose2D(51.5, 10.0, 0.0)  # 2.5 m apart, the wall's end 85 m north
+    path = planner.plan(costmap, start, goal)
+    assert path is not None and path.length_m > 160.0
+    assert planner._graph[0] == (0, 1000, 0, 1000)  # it had to search the whole map
+    assert not costmap.any_lethal(path.points[:, 0], path.points[:, 1])

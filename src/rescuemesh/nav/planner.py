@@ -100,6 +100,10 @@ def shortcut(
     return points[kept]
 
 
+#: A search window covering at least this share of the map searches the whole map at once.
+WHOLE_MAP_SHARE = 0.5
+
+
 @register_planner("mcp")
 class MCPPlanner(Planner):
     """Minimum-cost path with `skimage.graph.MCP_Geometric` (8-connected Dijkstra), then shortcutting.
@@ -110,10 +114,14 @@ class MCPPlanner(Planner):
     0.05 m office grid into 0.1 m and one plan from about 20 ms into about 5 ms. The shortcut pass
     always checks the full-resolution costmap.
 
+    The search is bounded on large maps: it runs in a window, the box around start and goal grown
+    by `window_margin_m` (8 m), and on the whole map only when the window holds no path (a detour
+    wider than the margin) or covers half the map anyway. A path found in the window is the best
+    one inside it; a shorter path leaving the window by more than the margin is not looked for.
     The coarse grid and its MCP graph (about half a plan's time) are kept for the last cost array
-    planned on: costmaps are never modified, and successive costmaps share their cost array while
-    no scan obstacle is added (see `Costmap.with_obstacles`). Searches on the kept graph give the
-    same paths, as `find_costs` resets it.
+    and window planned on: costmaps are never modified, and successive costmaps share their cost
+    array while no scan obstacle is added (see `Costmap.with_obstacles`). Searches on the kept
+    graph give the same paths, as `find_costs` resets it.
     """
 
     def __init__(
@@ -124,8 +132,11 @@ class MCPPlanner(Planner):
         start_snap_radius: float = 0.5,
         max_segment_m: float = 2.0,
         smooth: bool = True,
+        window_margin_m: float | None = 8.0,
     ) -> None:
-        """`start_snap_radius` in m: how far a start inside lethal space may be moved; `max_segment_m` in m."""
+        """`start_snap_radius` in m: how far a start inside lethal space may be moved; `max_segment_m` in m.
+        `window_margin_m`: search the box around start and goal grown by this many m first, and the
+        whole map only when that box holds no path (None: always the whole map)."""
         if downsample < 1:
             raise ValueError("downsample must be >= 1")
         self.downsample = int(downsample)
@@ -133,25 +144,30 @@ class MCPPlanner(Planner):
         self.start_snap_radius = float(start_snap_radius)
         self.max_segment_m = float(max_segment_m)
         self.smooth = smooth
-        self._graph: tuple[np.ndarray, np.ndarray, MCP_Geometric] | None = None  # (costmap.cost, lethal, graph)
+        self.window_margin_m = window_margin_m
+        self._graph: tuple | None = None  # (window, costmap.cost, coarse lethal, graph) of the last search
 
-    def _search_graph(self, costmap: Costmap) -> tuple[np.ndarray, MCP_Geometric]:
-        """(coarse lethal mask, MCP graph over the coarse costs) of `costmap`, reused for the same cost array."""
-        if self._graph is None or self._graph[0] is not costmap.cost:
-            coarse = self._coarse_cost(costmap)
+    def _search_graph(self, costmap: Costmap, window: tuple[int, int, int, int]) -> tuple[np.ndarray, MCP_Geometric]:
+        """(coarse lethal mask, MCP graph over the coarse costs) of `window` (coarse rows r0:r1,
+        cols c0:c1) of `costmap`, reused for the same cost array and window."""
+        key = (window, costmap.cost)
+        if self._graph is None or self._graph[0] != key[0] or self._graph[1] is not key[1]:
+            coarse = self._coarse_cost(costmap, window)
             lethal = coarse >= LETHAL
             graph = MCP_Geometric(np.where(lethal, np.inf, 1.0 + self.cost_weight * coarse), fully_connected=True)
-            self._graph = (costmap.cost, lethal, graph)
-        return self._graph[1], self._graph[2]
+            self._graph = (window, costmap.cost, lethal, graph)
+        return self._graph[2], self._graph[3]
 
-    def _coarse_cost(self, costmap: Costmap) -> np.ndarray:
+    def _coarse_cost(self, costmap: Costmap, window: tuple[int, int, int, int]) -> np.ndarray:
+        """The highest cost of each k x k block of cells in `window` (coarse cells; blocks past the
+        map's edge count as lethal)."""
         k = self.downsample
-        cost = costmap.cost
+        r0, r1, c0, c1 = window
+        cost = costmap.cost[r0 * k:r1 * k, c0 * k:c1 * k]
         if k == 1:
             return cost
         h, w = cost.shape
-        hk, wk = -(-h // k), -(-w // k)
-        padded = np.full((hk * k, wk * k), LETHAL, dtype=cost.dtype)
+        padded = np.full(((r1 - r0) * k, (c1 - c0) * k), LETHAL, dtype=cost.dtype)
         padded[:h, :w] = cost
         out = padded[0::k, 0::k].copy()
         for dr in range(k):
@@ -160,11 +176,41 @@ class MCPPlanner(Planner):
                     np.maximum(out, padded[dr::k, dc::k], out=out)
         return out
 
-    def plan(self, costmap: Costmap, start: Pose2D, goal: Pose2D, *, goal_tolerance: float = 0.0) -> Path | None:
+    def _windows(self, costmap: Costmap, start: Pose2D, goal: Pose2D) -> list[tuple[int, int, int, int]]:
+        """Coarse-cell windows to search, smallest first: the box around start and goal grown by
+        `window_margin_m` (when that is well under the whole map), then the whole map."""
         k = self.downsample
         cell = costmap.resolution * k
+        rows, cols = (-(-n // k) for n in costmap.shape)
+        whole = (0, rows, 0, cols)
+        if self.window_margin_m is None:
+            return [whole]
         ox, oy = costmap.grid.origin_x, costmap.grid.origin_y
-        lethal, mcp = self._search_graph(costmap)
+        margin = int(math.ceil(self.window_margin_m / cell))
+        r = [math.floor((y - oy) / cell) for y in (start.y, goal.y)]
+        c = [math.floor((x - ox) / cell) for x in (start.x, goal.x)]
+        window = (max(0, min(r) - margin), min(rows, max(r) + margin + 1),
+                  max(0, min(c) - margin), min(cols, max(c) + margin + 1))
+        if window[0] >= window[1] or window[2] >= window[3]:
+            return [whole]
+        area = (window[1] - window[0]) * (window[3] - window[2])
+        return [window, whole] if area < WHOLE_MAP_SHARE * rows * cols else [whole]
+
+    def plan(self, costmap: Costmap, start: Pose2D, goal: Pose2D, *, goal_tolerance: float = 0.0) -> Path | None:
+        windows = self._windows(costmap, start, goal)
+        for window in windows:
+            path = self._plan_in(costmap, start, goal, goal_tolerance, window)
+            if path is not None:
+                return path
+        return None
+
+    def _plan_in(self, costmap: Costmap, start: Pose2D, goal: Pose2D, goal_tolerance: float,
+                 window: tuple[int, int, int, int]) -> Path | None:
+        k = self.downsample
+        cell = costmap.resolution * k
+        r_off, c_off = window[0], window[2]
+        ox, oy = costmap.grid.origin_x + c_off * cell, costmap.grid.origin_y + r_off * cell
+        lethal, mcp = self._search_graph(costmap, window)
 
         def to_cell(x: float, y: float) -> tuple[int, int]:
             return (math.floor((y - oy) / cell), math.floor((x - ox) / cell))
