@@ -1,12 +1,23 @@
-"""A planar scanning laser rangefinder cast with mujoco.mj_multiRay (Hokuyo URG-04LX by default).
+"""A planar scanning laser rangefinder (Hokuyo URG-04LX by default) and what it sees (LidarScene).
 
-Owns: LidarConfig (beam geometry, rate, range limits, noise) and one sweep. Must not know when
-sweeps happen (the world schedules them) nor who reads them.
+Owns: LidarConfig (beam geometry, rate, range limits, noise), one sweep, and the split of the world
+into the map's walls and everything else. Must not know when sweeps happen (the world schedules
+them) nor who reads them.
+
+Theory of operation (docs/sensors.md, section 9): a beam's range is the nearer of two casts. The
+map's walls, often a thousand static boxes on a SLAM map, are cast on the grid they came from
+(gridcast.py, an exact cell walk whose cost does not depend on the number of walls). Everything
+else the lidar's geom groups hold (other robots, quadrotors, any non-wall geom) is cast by
+mujoco.mj_multiRay in a small MuJoCo model of its own, the LidarScene, holding copies of those geoms
+on mocap bodies that follow the world's bodies. mj_multiRay visits every geom of a model for every
+beam, even geoms its group mask rejects, so casting in the world's own model would cost in
+proportion to the wall count. The world's model, its physics and its pictures keep the wall boxes.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Collection
 from dataclasses import dataclass
 
 import mujoco
@@ -14,6 +25,8 @@ import numpy as np
 
 from rescuemesh.body import LaserScan
 from rescuemesh.geometry import Pose2D
+from rescuemesh.maps.model import MapModel
+from rescuemesh.sim.gridcast import WallGrid
 from rescuemesh.sim.mjcf import LIDAR_GEOM_GROUPS
 
 
@@ -63,8 +76,97 @@ class LidarConfig:
         return self.fov_rad / (self.beams - 1) if self.beams > 1 else 0.0
 
 
+# Geom types the LidarScene can copy: MuJoCo primitives, whose shape is all in geom_size.
+_PRIMITIVES = {
+    mujoco.mjtGeom.mjGEOM_PLANE: "plane",
+    mujoco.mjtGeom.mjGEOM_SPHERE: "sphere",
+    mujoco.mjtGeom.mjGEOM_CAPSULE: "capsule",
+    mujoco.mjtGeom.mjGEOM_ELLIPSOID: "ellipsoid",
+    mujoco.mjtGeom.mjGEOM_CYLINDER: "cylinder",
+    mujoco.mjtGeom.mjGEOM_BOX: "box",
+}
+
+
+def _f(values) -> str:
+    return " ".join(f"{float(v)!r}" for v in values)
+
+
+class LidarScene:
+    """What every lidar of one World sees: the map's walls on a grid, the rest in a small MuJoCo model.
+
+    - `model`, `data`: the World's MuJoCo model and data (read only: poses after mj_kinematics).
+    - `map_model`: the map whose walls became the geoms `wall_geoms` (ids in `model`).
+
+    Every other geom a lidar can see (in LIDAR_GEOM_GROUPS, not transparent: mj_ray's rules) is
+    copied, with its type, size, pose in its body and group, onto a mocap body that `refresh` puts
+    where the World's body is. Geoms of the world body are copied in place. Only primitive geom types
+    can be copied; a mesh, height field or SDF raises ValueError.
+    """
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, map_model: MapModel,
+                 wall_geoms: Collection[int]) -> None:
+        self._source = data
+        self.walls = WallGrid(map_model)
+        walls = set(int(g) for g in wall_geoms)
+        by_body: dict[int, list[int]] = {}
+        for g in range(model.ngeom):
+            if g not in walls and _seen_by_lidar(model, g):
+                by_body.setdefault(int(model.geom_bodyid[g]), []).append(g)
+        fixed = "".join(_geom_xml(model, g) for g in by_body.pop(0, []))
+        moving = sorted(by_body)
+        bodies = "".join(
+            f'    <body name="b{b}" mocap="true">\n{"".join(_geom_xml(model, g) for g in by_body[b])}    </body>\n'
+            for b in moving
+        )
+        xml = f"""<mujoco model="lidar_scene">
+  <worldbody>
+{fixed}{bodies}  </worldbody>
+</mujoco>
+"""
+        self.model = mujoco.MjModel.from_xml_string(xml)
+        self.data = mujoco.MjData(self.model)
+        self._moving = np.array(moving, dtype=np.intp)
+        #: World body id -> scene body id (-1 for bodies with nothing the lidar sees).
+        self._body = {b: self.model.body(f"b{b}").id for b in moving}
+        self.refresh()
+
+    def scene_body(self, body_id: int) -> int:
+        """The scene's copy of the World's body `body_id`, or -1 when it has no geom a lidar sees."""
+        return self._body.get(int(body_id), -1)
+
+    def refresh(self) -> None:
+        """Move the copies to the World's current body poses (the World's kinematics must be current)."""
+        if len(self._moving):
+            self.data.mocap_pos[:] = self._source.xpos[self._moving]
+            self.data.mocap_quat[:] = self._source.xquat[self._moving]
+        mujoco.mj_kinematics(self.model, self.data)
+
+
+def _seen_by_lidar(model: mujoco.MjModel, g: int) -> bool:
+    """mj_ray's rules (engine_ray.c, ray_eliminate): in a group the lidar casts on, and not transparent."""
+    group = min(max(int(model.geom_group[g]), 0), len(LIDAR_GEOM_GROUPS) - 1)
+    if not LIDAR_GEOM_GROUPS[group]:
+        return False
+    mat = int(model.geom_matid[g])
+    alpha = model.mat_rgba[mat][3] if mat >= 0 else model.geom_rgba[g][3]
+    return bool(alpha != 0.0)
+
+
+def _geom_xml(model: mujoco.MjModel, g: int) -> str:
+    """MJCF of a copy of geom `g`. Its contype and conaffinity stay at MuJoCo's defaults: the compiler
+    gives a body the bounding volume mj_multiRay uses to skip it only when its geoms can collide (with
+    0 and 0 a sweep took twice as long). The scene is never stepped, so nothing collides."""
+    kind = _PRIMITIVES.get(int(model.geom_type[g]))
+    if kind is None:
+        name = model.geom(g).name or f"#{g}"
+        raise ValueError(f"the lidar cannot see geom {name}: type {mujoco.mjtGeom(model.geom_type[g]).name}"
+                         " is not a primitive (LidarScene copies primitives only)")
+    return (f'      <geom type="{kind}" size="{_f(model.geom_size[g])}" pos="{_f(model.geom_pos[g])}"'
+            f' quat="{_f(model.geom_quat[g])}" group="{int(model.geom_group[g])}"/>\n')
+
+
 class Lidar:
-    """Casts the beams of one robot's lidar in a MuJoCo world.
+    """Casts the beams of one robot's lidar in a World's LidarScene.
 
     The beams lie in the horizontal plane at `config.height` above the floor, centred on the robot's
     base (the sensor frame is the base frame). The robot's own base body is excluded; the floor,
@@ -73,48 +175,57 @@ class Lidar:
 
     def __init__(
         self,
-        model: mujoco.MjModel,
-        data: mujoco.MjData,
+        scene: LidarScene,
         body_id: int,
         config: LidarConfig,
         rng: np.random.Generator,
     ) -> None:
-        self._model = model
-        self._data = data
-        self._body_id = body_id
+        self._scene = scene
+        self._exclude = scene.scene_body(body_id)
         self.config = config
         self._rng = rng
         n = config.beams
         self._angles = config.angle_min + config.angle_increment * np.arange(n)
         self._groups = np.array(LIDAR_GEOM_GROUPS, dtype=np.uint8)
+        self._sees_walls = 0.0 <= config.height <= scene.walls.wall_height
         self._pnt = np.zeros(3)
         self._vec = np.zeros((n, 3))
+        self._cos = np.zeros(n)
+        self._sin = np.zeros(n)
         self._geomid = np.zeros(n, dtype=np.int32)
         self._dist = np.zeros(n)
+        self._wall_dist = np.full(n, np.inf)
 
     def sweep(self, stamp: float, origin: Pose2D) -> LaserScan:
-        """One sweep from `origin` (map frame) taken at `stamp` s; geometry must be current (mj_kinematics)."""
+        """One sweep from `origin` (map frame) taken at `stamp` s; the scene must be current (refresh)."""
         cfg = self.config
+        scene = self._scene
         self._pnt[:] = (origin.x, origin.y, cfg.height)
         world_angles = self._angles + origin.yaw
-        self._vec[:, 0] = np.cos(world_angles)
-        self._vec[:, 1] = np.sin(world_angles)
+        cos, sin = self._cos, self._sin
+        np.cos(world_angles, out=cos)
+        np.sin(world_angles, out=sin)
+        self._vec[:, 0] = cos
+        self._vec[:, 1] = sin
+        if self._sees_walls:
+            scene.walls.cast(origin.x, origin.y, cos, sin, cfg.range_max, self._wall_dist)
         mujoco.mj_multiRay(
-            self._model,
-            self._data,
+            scene.model,
+            scene.data,
             self._pnt,
             self._vec.reshape(-1),
             self._groups,
-            1,  # include static geoms (walls)
-            self._body_id,
+            1,  # include static geoms
+            self._exclude,
             self._geomid,
             self._dist,
             None,
             cfg.beams,
             cfg.range_max,
         )
-        ranges = self._dist.copy()
-        ranges[(ranges < 0.0) | (ranges > cfg.range_max)] = np.inf
+        ranges = np.where(self._dist < 0.0, np.inf, self._dist)
+        np.minimum(ranges, self._wall_dist, out=ranges)
+        ranges[ranges > cfg.range_max] = np.inf
         if cfg.noise_std > 0.0:
             hit = np.isfinite(ranges)
             ranges[hit] += self._rng.normal(0.0, cfg.noise_std, int(hit.sum()))

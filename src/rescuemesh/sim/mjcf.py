@@ -76,6 +76,11 @@ _GROUND_BIT = GROUND_BIT
 _BODY_BIT = BODY_BIT
 
 
+def wall_name(index: int) -> str:
+    """Name of the geom of `MapModel.walls[index]`."""
+    return f"wall_{index}"
+
+
 def base_name(robot: str) -> str:
     return f"{robot}/base"
 
@@ -127,7 +132,7 @@ def world_xml(map_model: MapModel, starts: Mapping[str, Pose2D], physics_dt: flo
     cx, cy = 0.5 * (b.x_min + b.x_max), 0.5 * (b.y_min + b.y_max)
     h = map_model.wall_height
     walls = "\n".join(
-        f'    <geom name="wall_{i}" class="wall"'
+        f'    <geom name="{wall_name(i)}" class="wall"'
         f' pos="{_f(0.5 * (w.x_min + w.x_max), 0.5 * (w.y_min + w.y_max), 0.5 * h)}"'
         f' size="{_f(0.5 * (w.x_max - w.x_min), 0.5 * (w.y_max - w.y_min), 0.5 * h)}"/>'
         for i, w in enumerate(map_model.walls)

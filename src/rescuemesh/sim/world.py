@@ -27,7 +27,7 @@ from rescuemesh.maps.model import MapModel
 from rescuemesh.sim import mjcf
 from rescuemesh.sim.body import SimBody
 from rescuemesh.sim.camera import CameraConfig, Cameras
-from rescuemesh.sim.lidar import Lidar, LidarConfig
+from rescuemesh.sim.lidar import Lidar, LidarConfig, LidarScene
 from rescuemesh.sim.quadrotor import SimQuadrotor, quadrotor_part
 
 MAX_PHYSICS_DT = 0.005  # s; larger steps make the wheel contacts and the collision counting coarse
@@ -104,8 +104,11 @@ class World:
         for n in ground:
             self.bodies[n].top_height = mjcf.PLATE_TOP
         child_rngs = rng.spawn(len(ground))
+        mujoco.mj_kinematics(self.model, self.data)
+        walls = [self.model.geom(mjcf.wall_name(i)).id for i in range(len(map_model.walls))]
+        self._lidar_scene = LidarScene(self.model, self.data, map_model, walls)
         self._lidars = {
-            n: Lidar(self.model, self.data, self.bodies[n].body_id, lidar, child_rngs[i]) for i, n in enumerate(ground)
+            n: Lidar(self._lidar_scene, self.bodies[n].body_id, lidar, child_rngs[i]) for i, n in enumerate(ground)
         }
         self.cameras = Cameras(self.model, self.data, ground, camera) if camera is not None else None
         if self.cameras is not None:
@@ -246,6 +249,7 @@ class World:
     def _sweep(self) -> None:
         """One lidar sweep per robot at the current time (kinematics refreshed for current qpos)."""
         mujoco.mj_kinematics(self.model, self.data)
+        self._lidar_scene.refresh()
         now = self.time
         for name, lidar in self._lidars.items():
             body = self.bodies[name]
