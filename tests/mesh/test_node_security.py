@@ -35,7 +35,8 @@ SECURE = ReliabilityConfig(duplicate_window_s=float("inf"), duplicate_cache_size
 
 def stack(address: int, epoch: int = 0, relay: bool = True) -> NetworkStack:
     endpoint = Endpoint(address, EndpointConfig(reliability=SECURE, initial_epoch=epoch))
-    return NetworkStack(endpoint, MeshNode(address, MeshConfig(relay=relay), TEAM))
+    # no relay pacing: this harness pumps at one instant (pacing: test_suppression.py)
+    return NetworkStack(endpoint, MeshNode(address, MeshConfig(relay=relay, relay_pace_s=0.0), TEAM))
 
 
 class Air:

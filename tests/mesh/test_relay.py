@@ -59,6 +59,7 @@ def test_a_resend_with_new_attempt_bits_is_relayed_again_but_the_same_bytes_are_
     air.send(1, stop(1, 3, seq=1))  # the same bytes again: cached at node 2
     assert air.nodes[2].stats.relayed == 1 and air.nodes[2].stats.dropped_cached == 1
     air.send(1, stop(1, 3, seq=1, attempt=1))  # the endpoint's resend: a new frame for the cache
+    air.run_until(0.1)  # node 2 relays it one relay pace after the first
     assert air.nodes[2].stats.relayed == 2
     assert [e.data[1] >> 6 for e in delivered(air, 3)] == [0, 1]  # the endpoint dedupes
 
@@ -70,6 +71,7 @@ def test_relay_off_on_the_middle_node_cuts_the_chain():
     assert air.nodes[3].stats.relayed == 0 and not air.sent_by(3)
     assert air.nodes[4].stats.received == 0
     air.send(1, stop(1, 3, seq=2))  # the relay feature does not affect delivery to node 3
+    air.run_until(0.1)  # node 2 relays it one relay pace after the first
     assert len(delivered(air, 3)) == 1
 
 
@@ -114,7 +116,8 @@ def test_unknown_message_types_are_relayed_because_relays_read_the_header_only()
 
 def test_relay_retransmit_sends_a_relayed_frame_again_and_receivers_keep_one():
     # Mesh Profile 4.2.20 Relay Retransmit: 1 + count copies, interval apart; the cache drops copies
-    air = chain(3, configs={2: MeshConfig(relay_retransmit_count=2, relay_retransmit_interval_s=0.02)})
+    air = chain(3, configs={2: MeshConfig(relay_retransmit_count=2, relay_retransmit_interval_s=0.02,
+                                          relay_pace_s=0.0)})  # unpaced: the interval alone
     air.send(1, stop(1, 3, seq=1))
     air.run_until(1.0)
     copies = [s for s in air.log if s.sender == 2]

@@ -28,7 +28,8 @@ def test_a_4_kb_frame_crosses_a_chain_of_3_nodes_intact():
     assert delivered.data == frame and delivered.hops == 2 and delivered.src == 1
     done = only(air, 1, TransferComplete)
     assert (done.dst, done.seq, done.segments) == (3, 5, 256)
-    assert done.now == pytest.approx(255 * 0.02, abs=1e-6)  # the last release completes it: ack at once
+    # the last release completes it: ack at once, relayed one relay pace after node 2's last segment
+    assert done.now == pytest.approx(255 * 0.02 + MeshConfig().relay_pace_s, abs=1e-6)
     assert air.nodes[2].stats.relayed == 256 + air.nodes[3].stats.acks_sent
     assert air.nodes[1].stats.segments_retransmitted == 0
 

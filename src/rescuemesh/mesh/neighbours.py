@@ -17,6 +17,16 @@ reconnect"). Owns the table and the lost/found rule; must not know frames, relay
 # MeshConfig.initial_ttl before any Heartbeat. rssi_dbm is kept only when hops == 1: through a
 # relay the radio measured the relay, not the source.
 #
+# Only a Heartbeat says with which TTL it was originated. A source may send other frames with
+# less than its init_ttl (MeshConfig.unicast_ttl_from_hops: h + 1 to a robot h hops away), so for
+# them the formula gives an upper bound; once a Heartbeat from the source has been heard, such a
+# frame counts at most the hops that Heartbeat measured (Mesh Profile 1.0, 3.6.7: hops are
+# counted from heartbeats):
+#
+#     hops = min(init_ttl(src) - ttl + 1, hops of src's latest Heartbeat)    (not a Heartbeat)
+#
+# A source that moved further away shows its new distance with its next Heartbeat (1 s).
+#
 # Liveness is a deadline per entry, lost_s = (lost_after_missed + 0.5) * heartbeat_period_s:
 #
 #     (unknown) --heard--------------------------> ALIVE  (NeighbourFound)
@@ -59,6 +69,7 @@ class _Entry:
     last_heard_s: float
     lost: bool
     init_ttl: int | None
+    beat_hops: int | None = None  # hops of the latest Heartbeat heard from it
 
 
 class NeighbourTable:
@@ -91,17 +102,22 @@ class NeighbourTable:
         the value a Heartbeat carries (None for other frames). Returns the hops and, on a
         transition to ALIVE, the NeighbourFound event."""
         entry = self._entries.get(address)
-        if init_ttl is None and entry is not None:
+        beat = init_ttl is not None
+        if not beat and entry is not None:
             init_ttl = entry.init_ttl
         hops = self.hops_for(address, ttl, init_ttl)
+        if not beat and entry is not None and entry.beat_hops is not None:
+            hops = min(hops, entry.beat_hops)  # the frame may have left with less than init_ttl
         rssi = rssi_dbm if hops == 1 else None
         self._dirty = True
         if entry is None:
-            self._entries[address] = _Entry(hops, rssi, now, False, init_ttl)
+            self._entries[address] = _Entry(hops, rssi, now, False, init_ttl, hops if beat else None)
             return hops, NeighbourFound(address, hops, now)
         found = NeighbourFound(address, hops, now) if entry.lost else None
         entry.hops, entry.rssi_dbm, entry.last_heard_s, entry.lost = hops, rssi, now, False
         entry.init_ttl = init_ttl
+        if beat:
+            entry.beat_hops = hops
         return hops, found
 
     def next_deadline(self) -> float | None:
@@ -135,6 +151,11 @@ class NeighbourTable:
         """Hops to `address` from its latest frame (kept while lost), None if unknown or forgotten."""
         entry = self._entries.get(address)
         return None if entry is None else entry.hops
+
+    def heartbeat_heard(self, address: int) -> bool:
+        """Whether a Heartbeat from `address` was heard since it was last forgotten."""
+        entry = self._entries.get(address)
+        return entry is not None and entry.beat_hops is not None
 
     def init_ttl_of(self, address: int) -> int | None:
         entry = self._entries.get(address)

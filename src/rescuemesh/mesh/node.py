@@ -23,6 +23,17 @@ the relay decision and the outbox; must not know radios, clocks, random numbers 
 #      Mesh Profile 4.2.20: a receiver's cache drops the copies it already has);
 #      TTL < 2 -> dropped_ttl.
 #
+# Relay suppression (counter-based, Ni et al., MobiCom 1999; outbox.py): a hit in step 3 on a
+# frame whose relayed copies still wait in the outbox is counted; at relay_suppress_after hits
+# those copies are cancelled. Copies already handed out by transmissions() are the transport's.
+#
+# TTL on send: a unicast control frame sent for the first time (attempt bits 0) to a destination
+# whose Heartbeat we heard and that the neighbour table hears at h hops (not lost) goes out with
+# TTL min(initial_ttl, h + 1): its path plus one hop of slack, not the whole team. A resend, a
+# broadcast, a segmented frame, or a destination unknown, lost or never heard in a Heartbeat
+# keeps the endpoint's TTL (Mesh Profile 1.0, 3.6.7: heartbeat hop counts "may be used to
+# determine the TTL"; neighbours.py says why the receiver still counts hops right). docs/mesh.md 12.
+#
 # A relay reads the header only (and, for metadata, a segment's SegO/SegN): it never decodes a
 # payload, so it relays message types it does not know.
 #
@@ -38,8 +49,6 @@ the relay decision and the outbox; must not know radios, clocks, random numbers 
 
 from __future__ import annotations
 
-import heapq
-import itertools
 import math
 from collections import deque
 from dataclasses import dataclass
@@ -66,8 +75,9 @@ from rescuemesh.protocol import (
 from .cache import NetworkCache
 from .config import MeshConfig
 from .events import FrameDelivered, MeshEvent, PeerRestarted
-from .frames import FrameKind, FrameView, cache_key, read_logical, read_on_air, with_ttl
+from .frames import ATTEMPT_SHIFT, FrameKind, FrameView, cache_key, read_logical, read_on_air, with_ttl
 from .neighbours import NeighbourInfo, NeighbourTable
+from .outbox import Outbox
 from .reassembly import SarReceiver
 from .replay import ReplayVerdict, ReplayWindow
 from .sar import SarSender
@@ -128,8 +138,8 @@ class MeshNode:
         self._cache = NetworkCache(self.config.cache_size, self.config.cache_lifetime_s)
         self._neighbours = NeighbourTable(self.config)
         self._events: deque[MeshEvent] = deque()
-        self._outbox: list[tuple[float, int, Transmission]] = []  # heap by (due time, order)
-        self._order = itertools.count()
+        self._outbox: Outbox[Transmission] = Outbox(self.config.relay_suppress_after, self.config.relay_pace_s,
+                                                     self.config.relay_max_wait_s)
         self._ack_seq = 0  # seq of the SegmentAcks this node originates (docs/mesh.md)
         self._sender = SarSender(
             self.config, self.stats, self._neighbours.hops_to, self._queue_segment, self._events.append
@@ -160,8 +170,12 @@ class MeshNode:
         frame = bytes(frame)
         if len(frame) <= MAX_CONTROL_FRAME_BYTES:
             self.stats.sent += 1
+            ttl = self._unicast_ttl(frame, view, now)
+            if ttl != view.ttl:
+                frame = with_ttl(frame, ttl)
+                self.stats.sent_short_ttl += 1
             self._push(now, Transmission(self._seal(frame, epoch), view.src, view.dst, view.msg_type, view.seq,
-                                         view.ttl, False, None, None))
+                                         ttl, False, None, None))
         elif view.dst == BROADCAST:
             raise ValueError("a frame longer than 20 bytes is segmented and needs a unicast destination")
         else:
@@ -199,8 +213,13 @@ class MeshNode:
         key = cache_key(data)
         if self.sealer is not None:  # a rebooted source's frame may repeat an old one but for its epoch
             key = self._rx_epoch.to_bytes(4, "big") + key
-        if not self._cache.check_and_add(key, now):
+        # a frame whose relayed copies still wait here is a duplicate even if its cache entry expired
+        if not self._cache.check_and_add(key, now) or self._outbox.waiting(key):
             stats.dropped_cached += 1
+            cancelled = self._outbox.heard_again(key, view.ttl)
+            if cancelled:
+                stats.relays_suppressed += 1
+                stats.relay_copies_suppressed += cancelled
             return
         if self._replay is not None:
             send = None if view.kind is FrameKind.SEGMENT else data[1] >> 6
@@ -220,25 +239,24 @@ class MeshNode:
             except FrameError:
                 stats.dropped_malformed += 1
         if view.dst != self.address and self.config.relay:
-            self._relay(data, view, now + relay_delay_s)
+            self._relay(data, view, now + relay_delay_s, key)
 
     # --- the aioquic loop ------------------------------------------------------------------------
 
     def transmissions(self, now: float) -> list[Transmission]:
         """Everything due by `now` s (relays whose delay has passed included), oldest first."""
-        out = []
-        outbox, stats = self._outbox, self.stats
-        while outbox and outbox[0][0] <= now:
-            item = heapq.heappop(outbox)[2]
+        out = self._outbox.pop_due(now)
+        stats = self.stats
+        stats.relays_expired = self._outbox.expired
+        for item in out:
             stats.transmitted += 1
             stats.bytes_transmitted += len(item.data)
-            out.append(item)
         return out
 
     def get_timer(self) -> float | None:
         """Earliest time in s at which handle_timer() or transmissions() has work, or None."""
         times = [
-            self._outbox[0][0] if self._outbox else None,
+            self._outbox.next_due(),
             self._sender.next_timer(),
             self._receiver.next_timer(),
             self._neighbours.next_deadline(),
@@ -272,9 +290,17 @@ class MeshNode:
     # --- internals -------------------------------------------------------------------------------
 
     def _push(self, due: float, item: Transmission) -> None:
-        heapq.heappush(self._outbox, (due, next(self._order), item))
+        self._outbox.push(due, item)
 
-    def _relay(self, data: bytes, view: FrameView, due: float) -> None:
+    def _unicast_ttl(self, frame: bytes, view: FrameView, now: float) -> int:
+        """TTL for a control frame we originate (module comment, "TTL on send")."""
+        table = self._neighbours
+        if (not self.config.unicast_ttl_from_hops or view.dst == BROADCAST or frame[1] >> ATTEMPT_SHIFT
+                or not table.is_reachable(view.dst, now) or not table.heartbeat_heard(view.dst)):
+            return view.ttl
+        return min(view.ttl, table.hops_to(view.dst) + 1)
+
+    def _relay(self, data: bytes, view: FrameView, due: float, key: bytes) -> None:
         if view.ttl < 2:
             self.stats.dropped_ttl += 1
             return
@@ -292,7 +318,7 @@ class MeshNode:
         # cut two-hop bulk throughput fivefold (measured: 125 B/s against 529 B/s).
         copies = 1 + self.config.relay_retransmit_count if segment is None else 1
         for k in range(copies):
-            self._push(due + k * interval, relayed)
+            self._outbox.push(due + k * interval, relayed, key, ttl, paced=segment is None)
 
     def _deliver(self, frame: bytes, src: int, hops: int, rssi_dbm: float | None, now: float) -> None:
         self.stats.delivered += 1

@@ -15,7 +15,11 @@ class MeshStats:
     accepted: int = 0  # frames heard that passed every check (authentic, new) and were used
     delivered: int = 0  # FrameDelivered events (logical frames, reassembled ones included)
     relayed: int = 0  # frames queued for re-broadcast
+    relays_suppressed: int = 0  # of those, cancelled with copies still pending (relay_suppress_after)
+    relay_copies_suppressed: int = 0  # copies those cancellations kept off the air
+    relays_expired: int = 0  # relayed copies dropped after waiting relay_max_wait_s past their time
     sent: int = 0  # logical frames accepted by send()
+    sent_short_ttl: int = 0  # of those, unicast sent with TTL h + 1 < initial_ttl (unicast_ttl_from_hops)
     transmitted: int = 0  # Transmissions drained by transmissions()
     bytes_transmitted: int = 0
     dropped_cached: int = 0  # already in the network message cache
