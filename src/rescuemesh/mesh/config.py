@@ -37,8 +37,8 @@ class MeshConfig:
 
     relay: the relay feature (Bluetooth Mesh Profile 1.0, 3.4.6.1): re-broadcast frames not for us.
     relay_retransmit_count, relay_retransmit_interval_s: a relayed frame goes out 1 + count times,
-        interval s apart (Relay Retransmit state, Mesh Profile 4.2.20: count 0..7). 0 here (plain
-        flooding); the simulated team uses TEAM_RELAY_RETRANSMIT_COUNT = 2 at 20 ms, Zephyr's
+        interval s apart (Relay Retransmit state, Mesh Profile 4.2.20: count 0..7). 0 here (one
+        copy per relay); the simulated team uses TEAM_RELAY_RETRANSMIT_COUNT = 2 at 20 ms, Zephyr's
         default: a command then crosses 30 % loss via two relays 99.9 % of the time or better
         (rescuemesh bench; 99.3 % with 0), at three times the relays' airtime.
     relay_suppress_after: counter-based relay suppression (Ni, Tseng, Chen, Sheu, "The broadcast
