@@ -8,8 +8,8 @@ import math
 import pytest
 
 from rescuemesh.mesh import FrameDelivered, MeshConfig, MeshNode
-from rescuemesh.mesh.frames import with_ttl
-from rescuemesh.protocol import BROADCAST
+from rescuemesh.mesh.frames import read_on_air, with_ttl
+from rescuemesh.protocol import BROADCAST, MessageType
 
 from .chain import RSSI_DBM, mesh
 from .frames import heartbeat, stop
@@ -156,18 +156,24 @@ def sent_ttl(node: MeshNode, frame: bytes, now: float) -> int:
     return tx.ttl
 
 
-def test_a_unicast_to_a_one_hop_neighbour_goes_out_with_ttl_2():
-    # this used to flood every frame with TTL 7, across the whole team
+def test_a_unicast_to_a_one_hop_neighbour_goes_out_with_ttl_1():
+    # this used to flood every frame with TTL 7, across the whole team; TTL 1 is not relayed
     node = sender()
     learn(node, 2, hops=1)
-    assert sent_ttl(node, stop(1, 2, seq=1), 0.1) == 2
+    assert sent_ttl(node, stop(1, 2, seq=1), 0.1) == 1
     assert node.stats.sent_short_ttl == 1
 
 
-def test_a_unicast_two_hops_away_goes_out_with_ttl_3():
+def test_a_unicast_two_hops_away_goes_out_with_ttl_2():
     node = sender()
     learn(node, 3, hops=2)
-    assert sent_ttl(node, stop(1, 3, seq=1), 0.1) == 3
+    assert sent_ttl(node, stop(1, 3, seq=1), 0.1) == 2
+
+
+def test_slack_adds_hops():
+    node = sender(unicast_ttl_slack=1)
+    learn(node, 2, hops=1)
+    assert sent_ttl(node, stop(1, 2, seq=1), 0.1) == 2
 
 
 def test_an_unknown_destination_gets_ttl_7():
@@ -180,11 +186,12 @@ def test_a_lost_destination_gets_ttl_7():
     assert sent_ttl(node, stop(1, 2, seq=1), 10.0) == 7  # lost 3.5 s after last heard
 
 
-def test_a_resend_goes_with_the_full_ttl():
-    # the endpoint resends with attempt bits > 0: the short path may be the one that failed
+def test_each_resend_may_travel_one_hop_further():
+    # the endpoint resends with attempt bits > 0: the short path may be the one that failed. Full
+    # TTL on every resend flooded the team of 30 with a third of its airtime
     node = sender()
     learn(node, 2, hops=1)
-    assert sent_ttl(node, stop(1, 2, seq=1, attempt=1), 0.1) == 7
+    assert [sent_ttl(node, stop(1, 2, seq=s, attempt=a), 0.1) for s, a in ((1, 1), (2, 2), (3, 3))] == [2, 3, 4]
 
 
 def test_broadcasts_keep_their_ttl():
@@ -219,3 +226,24 @@ def test_a_destination_heard_only_through_other_frames_gets_ttl_7():
     node.receive(stop(2, 1, seq=1), 0.0, rssi_dbm=RSSI_DBM)
     assert node.hops_to(2) == 1
     assert sent_ttl(node, stop(1, 2, seq=1), 0.1) == 7
+
+
+def test_a_heartbeat_is_relayed_once_a_command_with_its_retransmissions():
+    # heartbeats used to go out three times from every relay: a third of a 30-robot team's airtime
+    node = relay_node(relay_suppress_after=None)
+    node.receive(heartbeat(1, seq=1), 0.0, relay_delay_s=0.0)
+    node.receive(stop(1, 3, seq=2), 0.0, relay_delay_s=0.0)
+    sent = node.transmissions(1.0)
+    assert sorted(MessageType(t.msg_type).name for t in sent) == ["HEARTBEAT", "STOP", "STOP", "STOP"]
+
+
+def test_heartbeats_go_out_with_the_heartbeat_ttl_and_announce_it():
+    from rescuemesh.protocol import Endpoint, EndpointConfig
+
+    endpoint = Endpoint(1, EndpointConfig(initial_ttl=7, heartbeat_ttl=3))
+    endpoint.send_heartbeat(0.0)
+    [frame] = endpoint.frames_to_send(0.0)
+    assert read_on_air(frame).ttl == 3
+    node = MeshNode(2, MeshConfig())
+    node.receive(frame, 0.0, rssi_dbm=RSSI_DBM)
+    assert node.hops_to(1) == 1  # hops counted from the announced init_ttl (3 - 3 + 1)

@@ -92,6 +92,8 @@ class MeshConfig:
     relay_max_wait_s: float = 0.1
     initial_ttl: int = 7
     unicast_ttl_from_hops: bool = True
+    unicast_ttl_slack: int = 0
+    heartbeat_ttl: int | None = 3
     cache_size: int = 128
     cache_lifetime_s: float = 0.75
     heartbeat_period_s: float = 1.0

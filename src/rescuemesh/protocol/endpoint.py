@@ -8,22 +8,8 @@ from __future__ import annotations
 from collections import OrderedDict, deque
 from dataclasses import asdict, dataclass, field, replace
 
-from .codec import (
-    BROADCAST,
-    DEFAULT_TTL,
-    MAX_ATTEMPT,
-    MAX_CONTROL_FRAME_BYTES,
-    MAX_EPOCH,
-    MAX_SEQ,
-    MAX_TTL,
-    MAX_UNICAST_ADDRESS,
-    PROTOCOL_VERSION,
-    TYPE_MASK,
-    FrameFlags,
-    Header,
-    decode_frame,
-    encode_frame,
-)
+from .codec import (BROADCAST, DEFAULT_TTL, MAX_ATTEMPT, MAX_CONTROL_FRAME_BYTES, MAX_EPOCH, MAX_SEQ, MAX_TTL,
+                    MAX_UNICAST_ADDRESS, PROTOCOL_VERSION, TYPE_MASK, FrameFlags, Header, decode_frame, encode_frame)
 from .errors import FrameError
 from .events import (
     CommandReceived,
@@ -63,17 +49,21 @@ MAX_OPEN_COMMANDS = 256
 @dataclass(frozen=True, slots=True)
 class EndpointConfig:
     """reliability: retry and duplicate rules. initial_ttl: TTL of every frame we originate, in hops
-    (0..15). initial_seq: first sequence number (0..65535); a runtime that restarts an endpoint can
+    (0..15). heartbeat_ttl: TTL of our Heartbeats (Bluetooth Mesh's Heartbeat Publication TTL;
+    None: initial_ttl): how far they reach. initial_seq: first sequence number (0..65535); a runtime that restarts an endpoint can
     draw it from its seeded generator so old seqs are not reused at once."""
 
     reliability: ReliabilityConfig = field(default_factory=ReliabilityConfig)
     initial_ttl: int = DEFAULT_TTL
+    heartbeat_ttl: int | None = None
     initial_seq: int = 0
     initial_epoch: int = 0
 
     def __post_init__(self) -> None:
         if not (isinstance(self.initial_ttl, int) and 0 <= self.initial_ttl <= MAX_TTL):
             raise ValueError(f"initial_ttl must be 0..{MAX_TTL}, got {self.initial_ttl!r}")
+        if self.heartbeat_ttl is not None and not (isinstance(self.heartbeat_ttl, int) and 0 <= self.heartbeat_ttl <= MAX_TTL):
+            raise ValueError(f"heartbeat_ttl must be 0..{MAX_TTL} or None, got {self.heartbeat_ttl!r}")
         if not (isinstance(self.initial_seq, int) and 0 <= self.initial_seq <= MAX_SEQ):
             raise ValueError(f"initial_seq must be 0..{MAX_SEQ}, got {self.initial_seq!r}")
         if not (isinstance(self.initial_epoch, int) and 0 <= self.initial_epoch <= MAX_EPOCH):
@@ -182,8 +172,8 @@ class Endpoint:
         """Queue a broadcast Heartbeat (not confirmed, not retried). `active_command`: a command's
         MessageType value, 0 when idle; `capabilities`: Capability bits of this robot."""
         seq = self.allocate_seq()
-        self._queue(self._encode(BROADCAST, seq, Heartbeat(active_command, self.config.initial_ttl, self.epoch,
-                                                           capabilities)))
+        ttl = self.config.initial_ttl if self.config.heartbeat_ttl is None else self.config.heartbeat_ttl
+        self._queue(self._encode(BROADCAST, seq, Heartbeat(active_command, ttl, self.epoch, capabilities), ttl))
 
     def allocate_seq(self) -> int:
         """The next sequence number of this endpoint, for any frame it originates (the mesh layer's
@@ -309,14 +299,12 @@ class Endpoint:
         if dst == self.address:
             raise ValueError(f"destination {dst} is this endpoint's own address")
 
-    def _header(self, dst: int, seq: int, message: Message) -> Header:
-        return Header(
-            PROTOCOL_VERSION, FrameFlags.NONE, self.config.initial_ttl, 0, message.TYPE,
-            self.address, dst, seq,
-        )
+    def _header(self, dst: int, seq: int, message: Message, ttl: int | None = None) -> Header:
+        ttl = self.config.initial_ttl if ttl is None else ttl
+        return Header(PROTOCOL_VERSION, FrameFlags.NONE, ttl, 0, message.TYPE, self.address, dst, seq)
 
-    def _encode(self, dst: int, seq: int, message: Message) -> bytes:
-        return encode_frame(self._header(dst, seq, message), message)
+    def _encode(self, dst: int, seq: int, message: Message, ttl: int | None = None) -> bytes:
+        return encode_frame(self._header(dst, seq, message, ttl), message)
 
     def _queue(self, frame: bytes) -> None:
         self._outbox.append((frame, self.epoch))

@@ -104,7 +104,8 @@ class SimRuntime:
         for name in starts:
             body = self.world.bodies[name]
             address = robot_address(name)
-            endpoint = Endpoint(address, EndpointConfig(reliability=reliability, initial_ttl=mesh.initial_ttl))
+            endpoint = Endpoint(address, EndpointConfig(reliability=reliability, initial_ttl=mesh.initial_ttl,
+                                                        heartbeat_ttl=mesh.heartbeat_ttl))
             stack = self.stacks[name] = NetworkStack(endpoint, MeshNode(address, mesh, self.sealer))
             nav = NavigateToPose(self.costmap)
             brain_config = config.brain if config.brain.base is not None else replace(config.brain, base=starts[name])
