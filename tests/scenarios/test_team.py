@@ -40,13 +40,13 @@ def test_thirty_robots_start_in_the_east_rooms_clear_of_walls_and_of_each_other(
     assert min(gaps) >= MIN_START_SEPARATION_M
 
 
-def test_each_robot_starts_no_nearer_the_hall_than_the_one_it_follows(office):
-    # robot_k+1 follows robot_k: numbered by path distance to the goal, so nobody starts ahead of its leader
-    starts = list(convoy_starts(office, robots=12).values())
-    doorway = (13.65, 4.6)
-    along = [math.hypot(p.x - doorway[0], p.y - doorway[1]) for p in starts]
-    assert along[0] == min(along)
-    assert sum(b >= a - 0.5 for a, b in zip(along, along[1:])) == len(along) - 1
+def test_each_robot_starts_a_lattice_step_from_the_one_it_follows(office):
+    # numbered by distance to the goal, robot_3 started on the far side of robot_1 from robot_2, drove
+    # round it into the doorway while the chain formed, and the leader was stuck there for good
+    starts = list(convoy_starts(office, robots=30).values())
+    steps = [a.distance_to(b) for a, b in zip(starts, starts[1:])]
+    assert sum(step <= 0.96 for step in steps) >= len(steps) - 2  # a snake through the lattice
+    assert max(steps) < 2.5
 
 
 def test_on_an_open_map_the_team_is_placed_behind_the_leader_away_from_the_goal(tmp_path):

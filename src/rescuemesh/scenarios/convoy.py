@@ -18,6 +18,7 @@ chain instead of a room.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 from rescuemesh.geometry import Pose2D
 from rescuemesh.protocol import ResultCode
@@ -39,10 +40,14 @@ OFFICE_TEAM_REGIONS = ("room_east", "room_northeast")
 HALL_ROUTE = ((7.8, 5.0), (7.8, 8.2), (1.0, 8.2), (1.0, 1.0), (6.5, 1.0), (6.5, 2.9), (3.2, 2.9), (3.2, 6.6),
               (6.0, 6.6))
 GOAL_ROOM = "hall"
+#: Centre-to-centre following distance in m of a convoy (the Follow scenario keeps the paper's 1 m):
+#: two TurtleBot 2 footprints (0.354 m) and a quarter metre between bumpers, so a chain of 30 is
+#: about 17 m long at rest and fits in the hall.
+CONVOY_FOLLOW_DISTANCE_M = 0.6
 #: A final gap (centre to centre, m) counts as close to the following distance within these bounds:
-#: at least two footprints apart, at most twice the following distance.
-MIN_GAP_M = 0.5
-MAX_GAP_M = 2.0
+#: at least two footprints and a little room apart, at most the following distance plus 0.6 m.
+MIN_GAP_M = 0.4
+MAX_GAP_M = CONVOY_FOLLOW_DISTANCE_M + 0.6
 
 
 class ConvoyScenario(Scenario):
@@ -98,6 +103,10 @@ class ConvoyScenario(Scenario):
         except PlacementError as error:
             raise ScenarioError(f"convoy of {len(self.robots)} on map {self.map.name!r}: {error}") from None
         return dict(zip(self.robots, poses))
+
+    def sim_config(self):
+        config = super().sim_config()
+        return replace(config, brain=replace(config.brain, follow_distance_m=CONVOY_FOLLOW_DISTANCE_M))
 
     # --- the mission -----------------------------------------------------------------------------
 

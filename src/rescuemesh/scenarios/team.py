@@ -8,9 +8,11 @@ How `place_behind` works: every free cell gets its path distance to the goal (sc
 MCP_Geometric over the cells a TurtleBot 2's centre may occupy with `clearance_m` to spare). Lattice
 points `spacing_m` apart, aligned on the leader's start, are candidates when they are reachable,
 no nearer the goal than the leader (nobody starts ahead of it) and, if `allowed` is given, inside one
-of those rectangles. The N - 1 candidates nearest the leader (by path) are taken, and numbered by
-their distance to the goal: robot_2 is the one closest to the goal, so each robot starts behind
-the robot it will follow.
+of those rectangles. The N - 1 candidates nearest the leader (by path) are taken and numbered as a
+chain: robot_2 is the nearest to the leader in line of sight, robot_3 the nearest to robot_2, and
+so on (ties: the one nearer the goal). Every robot then starts one lattice step from the robot it
+will follow, so it does not drive off while the chain forms, and no follower has to squeeze past
+another robot to reach its own.
 """
 
 from __future__ import annotations
@@ -71,12 +73,41 @@ def place_behind(grid: OccupancyGrid, leader: Pose2D, goal: tuple[float, float],
     if len(candidates) < count - 1:
         raise PlacementError(f"room for {len(candidates) + 1} robots behind the leader here "
                              f"({spacing_m} m apart, {clearance_m} m from walls), {count} asked")
-    chosen = sorted(candidates)[:count - 1]
-    chosen.sort(key=lambda c: (c[1], c[0]))
+    chosen = [(x, y, goal_m) for _, goal_m, x, y in sorted(candidates)[:count - 1]]
     poses = [leader]
-    for _, _, x, y in chosen:
+    for x, y in _chain_order(grid, free, (leader.x, leader.y), chosen):
         poses.append(Pose2D(x, y, _heading_to_goal(grid, toward_goal, x, y)))
     return poses
+
+
+def _chain_order(grid: OccupancyGrid, free: np.ndarray, leader: tuple[float, float],
+                 points: list[tuple[float, float, float]]) -> list[tuple[float, float]]:
+    """`points` (x, y, path distance to the goal) numbered as a chain from the leader: each next
+    robot is the nearest remaining point in line of sight of the previous one (ties: the one nearer
+    the goal), so that every robot starts within one lattice step of the robot it follows and no
+    follower has to pass another robot to reach its leader."""
+    remaining = list(points)
+    order = []
+    current = leader
+    while remaining:
+        def rank(p):
+            seen = _line_of_sight(grid, free, current, (p[0], p[1]))
+            return (not seen, round(math.hypot(p[0] - current[0], p[1] - current[1]), 6), p[2])
+        best = min(remaining, key=rank)
+        remaining.remove(best)
+        current = (best[0], best[1])
+        order.append(current)
+    return order
+
+
+def _line_of_sight(grid: OccupancyGrid, free: np.ndarray, a: tuple[float, float], b: tuple[float, float]) -> bool:
+    """Whether the straight segment a -> b (m) stays in `free` cells (sampled every half cell)."""
+    n = max(2, math.ceil(math.hypot(b[0] - a[0], b[1] - a[1]) / (0.5 * grid.resolution)) + 1)
+    for t in np.linspace(0.0, 1.0, n):
+        cell = grid.world_to_cell(a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]))
+        if not _inside(grid, cell) or not free[cell]:
+            return False
+    return True
 
 
 def _inside(grid: OccupancyGrid, cell: tuple[int, int]) -> bool:
