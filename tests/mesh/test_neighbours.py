@@ -130,3 +130,28 @@ def test_a_heartbeat_with_an_impossible_init_ttl_teaches_nothing():
     frame[-4:] = zlib.crc32(bytes(frame[:-4])).to_bytes(4, "big")
     node.receive(bytes(frame), 0.0)
     assert node.neighbours()[0].init_ttl is None and node.hops_to(2) == 3  # from initial_ttl 7
+
+
+def test_the_cached_next_deadline_always_equals_a_full_scan():
+    # the node asks for its timer after every frame heard; the table now keeps the minimum instead
+    # of rescanning every entry, and must never keep a stale one
+    import random
+
+    from rescuemesh.mesh import MeshConfig
+    from rescuemesh.mesh.neighbours import NeighbourTable
+
+    config = MeshConfig()
+    rng = random.Random(3)
+    for trial in range(30):
+        table, now = NeighbourTable(config), 0.0
+        for _ in range(300):
+            now += rng.choice([0.001, 0.05, 0.3, 1.0, 4.0, 30.0])
+            action = rng.random()
+            if action < 0.7:
+                table.heard(rng.randint(1, 12), 7, now, -60.0, 7 if rng.random() < 0.3 else None)
+            else:
+                table.expire(now)
+            entries = table._entries.values()
+            scan = min((e.last_heard_s + (config.neighbour_expiry_s if e.lost else config.lost_after_seconds)
+                        for e in entries), default=None)
+            assert table.next_deadline() == scan

@@ -109,7 +109,7 @@ class NeighbourTable:
         if not beat and entry is not None and entry.beat_hops is not None:
             hops = min(hops, entry.beat_hops)  # the frame may have left with less than init_ttl
         rssi = rssi_dbm if hops == 1 else None
-        self._dirty = True
+        self._touch(entry, now)
         if entry is None:
             self._entries[address] = _Entry(hops, rssi, now, False, init_ttl, hops if beat else None)
             return hops, NeighbourFound(address, hops, now)
@@ -119,6 +119,20 @@ class NeighbourTable:
         if beat:
             entry.beat_hops = hops
         return hops, found
+
+    def _touch(self, entry: "_Entry | None", now: float) -> None:
+        """Keep the cached next deadline valid when `entry` (None: a new one) is heard at `now`.
+        Hearing only moves an alive entry's deadline later: the minimum changes only when the entry
+        that held it is heard, when a lost one is (its deadline switches from expiry to loss), or
+        when a new entry's deadline (now + lost_s) comes before it. A team of 30
+        hears a thousand frames a second; rescanning every entry on each cost more than the rest
+        of the node's work."""
+        if self._dirty:
+            return
+        if entry is None:
+            self._dirty = self._next is None or now + self._lost_s < self._next
+        elif entry.lost or entry.last_heard_s + self._lost_s <= self._next:
+            self._dirty = True
 
     def next_deadline(self) -> float | None:
         """Earliest time in s at which an entry is lost or forgotten, or None."""

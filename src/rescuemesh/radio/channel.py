@@ -99,7 +99,9 @@ class ChannelModel(abc.ABC):
 
     @abc.abstractmethod
     def reception(self, tx_xy: Point, rx_xy: Point, frame_bytes: int, rng: np.random.Generator) -> Reception:
-        """Draw the fate of one frame at one receiver (fast: runs per frame per receiver)."""
+        """Draw the fate of one frame at one receiver (fast: runs per frame per receiver). Must give
+        cause OUT_OF_RANGE exactly when `audible` is False, and then draw nothing from `rng`: the
+        medium asks this alone and treats such a receiver as out of earshot."""
 
     @abc.abstractmethod
     def audible(self, tx_xy: Point, rx_xy: Point) -> bool:

@@ -214,6 +214,9 @@ class SimMedium:
         self._timer_at: dict[int, float] = {}
         self._pair_rngs: dict[tuple[int, int, int], np.random.Generator] = {}
         self._now = 0.0
+        #: Radio positions read once per pump or flush (the world does not move inside one): a team
+        #: of 30 asked each body for its pose 29 times per frame on the air.
+        self._xy: dict[int, tuple[float, float]] = {}
         #: Optional observer of every delivery (a test harness, the spoof scenario): called as
         #: observe(transmitter, receiver, data, now, deliver) and must call deliver() itself.
         self.observe: Callable[[int, int, bytes, float, Callable[[], None]], None] | None = None
@@ -245,6 +248,7 @@ class SimMedium:
         """Queue, stamped `now`, every frame the stacks have to send (call it after the brains ran
         at `now`, the time the medium was last pumped to)."""
         self._now = max(self._now, now)
+        self._xy.clear()
         for radio in self._radios.values():
             self._collect(radio, self._now)
 
@@ -252,6 +256,7 @@ class SimMedium:
         """Advance the medium to `now`: every event due by then, in time order. Frames the stacks
         queued since the last pump or flush leave at that earlier time."""
         self.flush(self._now)
+        self._xy.clear()
         heap = self._heap
         for _ in range(MAX_EVENTS_PER_PUMP):
             if not heap or heap[0][0] > now:
@@ -274,6 +279,12 @@ class SimMedium:
             return self._radios[address]
         except KeyError:
             raise ValueError(f"no radio with address {address}") from None
+
+    def _position(self, radio: _Radio) -> tuple[float, float]:
+        xy = self._xy.get(radio.address)
+        if xy is None:
+            xy = self._xy[radio.address] = radio.position()
+        return xy
 
     def _stream(self, *key: int) -> np.random.Generator:
         return np.random.default_rng(np.random.SeedSequence(self._seed, spawn_key=key))
@@ -337,17 +348,19 @@ class SimMedium:
                                transmission.msg_type, transmission.relayed, transmission.segment,
                                transmission.data, None if transmission.dst == BROADCAST else False)
             self.records.append(record)
-        sender_xy = radio.position()
+        sender_xy = self._position(radio)
         for receiver in self._radios.values():
             if receiver is radio:
                 continue
-            rx_xy = receiver.position()
-            if not receiver.enabled or not self.channel.audible(sender_xy, rx_xy):
+            verdict = None
+            if receiver.enabled:  # OUT_OF_RANGE exactly when not audible, nothing drawn (ChannelModel)
+                verdict = self.channel.reception(sender_xy, self._position(receiver), size,
+                                                 self._pair_rng(2, radio.address, receiver.address))
+            if verdict is None or verdict.cause is LossCause.OUT_OF_RANGE:
                 if transmission.dst in (BROADCAST, receiver.address):  # only intended ones count
                     cause = LossCause.RADIO_OFF if not receiver.enabled else LossCause.OUT_OF_RANGE
                     self._count_reception(transmission, receiver, cause)
                 continue
-            verdict = self.channel.reception(sender_xy, rx_xy, size, self._pair_rng(2, radio.address, receiver.address))
             reception = _Reception(transmission, radio, receiver, start, end, verdict, record)
             if receiver.on_air_until > start:
                 reception.lost = LossCause.HALF_DUPLEX
