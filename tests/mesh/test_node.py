@@ -82,7 +82,7 @@ def test_a_relayed_segment_carries_its_index_and_count():
 
 
 def test_transmissions_come_out_by_due_time():
-    node = MeshNode(1, MeshConfig(relay_pace_s=0.0))  # unpaced (pacing: test_suppression.py)
+    node = MeshNode(1, MeshConfig(relay_pace_s=0.0, heartbeat_relay_delay_scale=1.0))  # unpaced, heartbeats not held back
     node.receive(heartbeat(2, seq=1), 0.0, relay_delay_s=0.02)  # relayed copy due at 0.02
     node.send(stop(1, 3, seq=1), 0.01)
     assert node.transmissions(0.015)[0].msg_type == MessageType.STOP

@@ -247,3 +247,15 @@ def test_heartbeats_go_out_with_the_heartbeat_ttl_and_announce_it():
     node = MeshNode(2, MeshConfig())
     node.receive(frame, 0.0, rssi_dbm=RSSI_DBM)
     assert node.hops_to(1) == 1  # hops counted from the announced init_ttl (3 - 3 + 1)
+
+
+def test_a_heartbeat_waits_longer_to_be_relayed_so_that_others_relaying_it_first_cancel_it():
+    # heartbeats were relayed 0-10 ms after arrival like commands: six or seven relays per heartbeat
+    # in a team of 30, before any could hear another's copy
+    node = relay_node(relay_suppress_after=1, heartbeat_relay_delay_scale=5.0)
+    node.receive(heartbeat(1, seq=1, ttl=3), 0.0, relay_delay_s=0.008)
+    node.receive(stop(1, 3, seq=2), 0.0, relay_delay_s=0.008)
+    assert [MessageType(t.msg_type).name for t in node.transmissions(0.0081)] == ["STOP"]
+    node.receive(heartbeat(1, seq=1, ttl=2, init_ttl=3), 0.02)  # another relay's copy, heard meanwhile
+    assert [MessageType(t.msg_type).name for t in node.transmissions(1.0)] == ["STOP", "STOP"]
+    assert node.stats.relays_suppressed == 1

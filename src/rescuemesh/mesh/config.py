@@ -63,6 +63,12 @@ class MeshConfig:
         initial_ttl: one hop of slack, not a flood across the team (Mesh Profile 1.0, 3.6.7: hop
         counts from Heartbeats "may be used to determine the TTL"). Resends (attempt bits > 0),
         broadcasts, segmented frames and unknown or lost destinations keep initial_ttl.
+    unicast_ttl_slack: hops added to h above (0: a first send to a direct neighbour is not relayed).
+    heartbeat_ttl: TTL our Heartbeats go out with and announce (Heartbeat Publication TTL, Mesh
+        Profile 4.2.17; None: initial_ttl): 3 reaches partners two hops away, not a team of 30.
+    heartbeat_relay_delay_scale: a relayed Heartbeat waits the caller's relay delay times this
+        (5: 0..50 ms), so that most relays hear another's copy first and cancel theirs (counter-
+        based suppression); commands keep the short delay. 30 robots: 6.7 -> 3.5 relays a beat.
     cache_size: network message cache entries (Mesh Profile 1.0, 3.4.6.5; Zephyr keeps 10). 128
         covers the life of a flood (TTL x relay delay, about 0.2 s) at a few hundred frames per
         second, i.e. 30 robots streaming plus a segmented transfer (docs/mesh.md, "The cache").
@@ -94,6 +100,7 @@ class MeshConfig:
     unicast_ttl_from_hops: bool = True
     unicast_ttl_slack: int = 0
     heartbeat_ttl: int | None = 3
+    heartbeat_relay_delay_scale: float = 5.0
     cache_size: int = 128
     cache_lifetime_s: float = 0.75
     heartbeat_period_s: float = 1.0
@@ -132,6 +139,10 @@ class MeshConfig:
             raise ValueError(f"relay_retransmit_count must be 0..7 (3 bits), got {self.relay_retransmit_count!r}")
         _positive("relay_retransmit_interval_s", self.relay_retransmit_interval_s)
         _non_negative("relay_pace_s", self.relay_pace_s)
+        _positive("heartbeat_relay_delay_scale", self.heartbeat_relay_delay_scale)
+        _count("unicast_ttl_slack", self.unicast_ttl_slack, 0)
+        if self.heartbeat_ttl is not None and not (isinstance(self.heartbeat_ttl, int) and 0 <= self.heartbeat_ttl <= MAX_TTL):
+            raise ValueError(f"heartbeat_ttl must be 0..{MAX_TTL} or None, got {self.heartbeat_ttl!r}")
         if self.relay_max_wait_s != math.inf:  # inf: relays never go stale
             _positive("relay_max_wait_s", self.relay_max_wait_s)
         if self.max_reassemblies_per_source > self.max_reassemblies:
