@@ -141,7 +141,8 @@ def test_a_relay_that_waited_longer_than_relay_max_wait_is_dropped():
 # --- TTL of unicast frames from the neighbour table ----------------------------------------------
 
 def sender(**overrides) -> MeshNode:
-    return MeshNode(1, MeshConfig(**overrides))
+    """A node in a dense team (no sparse-team slack) unless `sparse_neighbours` is given."""
+    return MeshNode(1, MeshConfig(**{"sparse_neighbours": 0, **overrides}))
 
 
 def learn(node: MeshNode, src: int, hops: int, now: float = 0.0) -> None:
@@ -168,6 +169,16 @@ def test_a_unicast_two_hops_away_goes_out_with_ttl_2():
     node = sender()
     learn(node, 3, hops=2)
     assert sent_ttl(node, stop(1, 3, seq=1), 0.1) == 2
+
+
+def test_a_node_with_few_neighbours_gives_its_frames_a_hop_of_slack():
+    # a team of four at 30 % loss got 93 % of its commands through without it (99.95 % with)
+    node = sender(sparse_neighbours=6)
+    learn(node, 2, hops=1)
+    assert sent_ttl(node, stop(1, 2, seq=1), 0.1) == 2
+    for src in range(3, 9):  # seven neighbours: a dense team
+        learn(node, src, hops=1, now=0.2)
+    assert sent_ttl(node, stop(1, 2, seq=2), 0.3) == 1
 
 
 def test_slack_adds_hops():

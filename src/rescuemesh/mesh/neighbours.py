@@ -166,6 +166,11 @@ class NeighbourTable:
         entry = self._entries.get(address)
         return None if entry is None else entry.hops
 
+    def reachable_count(self, now: float) -> int:
+        """How many sources are reachable at `now` s (heard, not lost)."""
+        lost_s = self._lost_s
+        return sum(1 for e in self._entries.values() if not e.lost and now < e.last_heard_s + lost_s)
+
     def heartbeat_heard(self, address: int) -> bool:
         """Whether a Heartbeat from `address` was heard since it was last forgotten."""
         entry = self._entries.get(address)

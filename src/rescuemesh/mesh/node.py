@@ -27,12 +27,11 @@ the relay decision and the outbox; must not know radios, clocks, random numbers 
 # frame whose relayed copies still wait in the outbox is counted; at relay_suppress_after hits
 # those copies are cancelled. Copies already handed out by transmissions() are the transport's.
 #
-# TTL on send: a unicast control frame sent for the first time (attempt bits 0) to a destination
-# whose Heartbeat we heard and that the neighbour table hears at h hops (not lost) goes out with
-# TTL min(initial_ttl, h + 1): its path plus one hop of slack, not the whole team. A resend, a
-# broadcast, a segmented frame, or a destination unknown, lost or never heard in a Heartbeat
-# keeps the endpoint's TTL (Mesh Profile 1.0, 3.6.7: heartbeat hop counts "may be used to
-# determine the TTL"; neighbours.py says why the receiver still counts hops right). docs/mesh.md 12.
+# TTL on send: a unicast control frame to a destination whose Heartbeat we heard and that the
+# neighbour table hears at h hops (not lost) goes out with TTL min(initial_ttl, h + attempt bits),
+# one hop more in a sparse team: its path, not the whole team. A broadcast, a segmented frame, or
+# a destination unknown, lost or never heard in a Heartbeat keeps the endpoint's TTL (Mesh Profile
+# 1.0, 3.6.7: heartbeat hop counts "may be used to determine the TTL"). docs/mesh.md 12.
 #
 # A relay reads the header only (and, for metadata, a segment's SegO/SegN): it never decodes a
 # payload, so it relays message types it does not know.
@@ -299,8 +298,9 @@ class MeshNode:
         if (not self.config.unicast_ttl_from_hops or view.dst == BROADCAST
                 or not table.is_reachable(view.dst, now) or not table.heartbeat_heard(view.dst)):
             return view.ttl
-        attempt = frame[1] >> ATTEMPT_SHIFT  # each resend may travel one hop further
-        return min(view.ttl, table.hops_to(view.dst) + self.config.unicast_ttl_slack + attempt)
+        sparse = table.reachable_count(now) <= self.config.sparse_neighbours  # airtime to spare
+        slack = self.config.unicast_ttl_slack + (frame[1] >> ATTEMPT_SHIFT) + sparse
+        return min(view.ttl, table.hops_to(view.dst) + slack)
 
     def _relay(self, data: bytes, view: FrameView, due: float, key: bytes) -> None:
         if view.ttl < 2:
