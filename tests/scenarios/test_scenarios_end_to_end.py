@@ -239,3 +239,33 @@ def test_land_on_top_the_drone_lands_on_robot_2_and_is_carried(tmp_path):
     seen = m["capabilities_seen"]
     assert "FLYING" in seen["robot_4_by_robot_2"] and "CAMERA" not in seen["robot_4_by_robot_2"]
     assert "LANDING_PAD" in seen["robot_2_by_robot_4"] and "CAMERA" in seen["robot_2_by_robot_4"]
+
+
+def test_convoy_of_eight_forms_link_by_link_and_ends_in_the_hall(tmp_path):
+    code, result = run(tmp_path, "convoy", "--robots", "8")
+    assert code == 0 and result["success"], [c for c in result["criteria"] if not c["ok"]]
+    # a busy air may cost a Follow its three sends; the chain then asks again (CommandRequest)
+    assert result["protocol"]["commands_confirmed"] >= 7
+    m = result["metrics"]
+    assert m["robots"] == 8 and len(m["final_gaps_m"]) == 7
+    assert all(0.4 <= gap <= 1.2 for gap in m["final_gaps_m"])
+    assert {robot["final_region"] for robot in result["robots"].values()} == {"hall"}
+    assert all(robot["path_length_m"] > 10.0 for robot in result["robots"].values())
+    forms = [e for e in result["events"] if e[2] == "confirm" and "Follow" in e[3] and "ACCEPTED" in e[3]]
+    assert [e[1] for e in forms] == [f"robot_{k}" for k in range(1, 8)]  # link by link from the front
+
+
+def test_convoy_on_a_map_without_rooms_is_judged_on_the_unbroken_chain(tmp_path):
+    import numpy as np
+    from PIL import Image
+
+    img = np.full((120, 240), 254, dtype=np.uint8)  # 12 m x 6 m, free
+    img[0, :] = img[-1, :] = img[:, 0] = img[:, -1] = 0
+    Image.fromarray(img).save(tmp_path / "open.pgm")
+    (tmp_path / "open.yaml").write_text("image: open.pgm\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\n")
+    code, result = run(tmp_path / "out", "convoy", "--robots", "4", "--map", str(tmp_path / "open.yaml"),
+                       "--start", "robot_1=4,3,0", "--goal", "10,3")
+    assert code == 0 and result["success"], [c for c in result["criteria"] if not c["ok"]]
+    assert [c["check"].split(" (")[0] for c in result["criteria"]] == [
+        "Follow confirmed ACCEPTED on every link", "leader drove its route", "every gap ends between 0.4 and 1.2 m",
+        "no collision"]
