@@ -255,13 +255,12 @@ class MeshNode:
 
     def get_timer(self) -> float | None:
         """Earliest time in s at which handle_timer() or transmissions() has work, or None."""
-        times = [
-            self._outbox.next_due(),
-            self._sender.next_timer(),
-            self._receiver.next_timer(),
-            self._neighbours.next_deadline(),
-        ]
-        return min((t for t in times if t is not None), default=None)
+        best = None
+        for t in (self._outbox.next_due(), self._sender.next_timer(), self._receiver.next_timer(),
+                  self._neighbours.next_deadline()):
+            if t is not None and (best is None or t < best):
+                best = t
+        return best
 
     def handle_timer(self, now: float) -> None:
         """Neighbours lost or forgotten, SAR deadlines and acks, the next paced segment."""

@@ -105,8 +105,10 @@ class Outbox(Generic[T]):
 
     def next_due(self) -> float | None:
         own = self._heap[0][0] if self._heap else None
-        relay = max(self._relays[0][0], self._next_relay_s) if self._relays else None
-        return min((t for t in (own, relay) if t is not None), default=None)
+        if not self._relays:
+            return own
+        relay = max(self._relays[0][0], self._next_relay_s)
+        return relay if own is None or relay < own else own
 
     def pop_due(self, now: float) -> list[T]:
         """Every own item due by `now` s and the relayed copies due that the pace allows (one per

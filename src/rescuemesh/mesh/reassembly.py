@@ -118,6 +118,8 @@ class SarReceiver:
 
     def next_timer(self) -> float | None:
         """Earliest ack, incomplete or forget time in s, or None."""
+        if not self._active and not self._completed:  # the common case, asked after every frame heard
+            return None
         incomplete_s = self._config.incomplete_timeout_s
         times = [e.last_new_s + incomplete_s for e in self._active.values()]
         times += [e.ack_due_s for e in self._active.values() if e.ack_due_s is not None]

@@ -176,6 +176,8 @@ class SarSender:
 
     def next_timer(self) -> float | None:
         """Earliest time in s at which handle_timer() has work (pacer slot or deadline), or None."""
+        if not self._active:  # the common case, asked after every frame heard
+            return None
         times = [t.deadline_s for t in self._active.values() if t.state is TransferState.WAITING]
         if any(t.state is TransferState.SENDING for t in self._active.values()):
             times.append(self._next_release_s)

@@ -67,8 +67,8 @@ class NetworkStack:
         return [t.data for t in self.transmissions(now)]
 
     def get_timer(self) -> float | None:
-        timers = [t for t in (self.endpoint.get_timer(), self.node.get_timer()) if t is not None]
-        return min(timers) if timers else None
+        a, b = self.endpoint.get_timer(), self.node.get_timer()
+        return b if a is None else a if b is None or a < b else b
 
     def handle_timer(self, now: float) -> None:
         timer = self.endpoint.get_timer()
