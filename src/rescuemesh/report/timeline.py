@@ -48,7 +48,7 @@ def plot_timeline(rt, path: Path, *, title: str = "", metrics: dict | None = Non
     """Draw the timeline; a metrics `outage_start_s`/`outage_end_s` pair is shaded as a radio outage."""
     names = list(rt.trajectories)
     large = len(names) > SMALL_TEAM
-    height = 6.5 if not large else 4.0 + 0.16 * len(names)
+    height = 6.5 if not large else 5.0 + 0.08 * len(names)
     fig, (ax_speed, ax_radio) = plt.subplots(2, 1, figsize=(11, height), dpi=110, sharex=True,
                                              gridspec_kw={"height_ratios": [1.0, 1.3]})
     if large:
@@ -68,42 +68,10 @@ def plot_timeline(rt, path: Path, *, title: str = "", metrics: dict | None = Non
     ax_speed.grid(True, lw=0.3, alpha=0.5)
     ax_speed.set_title(title, fontsize=11)
 
-    kinds = ("all",) if large else KINDS  # a large team: one lane per radio, every kind
-    lanes = {(name, kind): i for i, (name, kind) in enumerate((n, k) for n in names for k in kinds)}
-    styles = {  # mark kind -> marker style
-        "heard": dict(marker="|", color="0.35", ms=9, label="heard by its destination"),
-        "resend": dict(marker="|", color="#ff7f0e", ms=11, mew=2, label="heard (resend)"),
-        "relayed": dict(marker="o", mfc="none", color="#1f77b4", ms=5, mew=1.0, label="relayed (this radio relays)"),
-        "lost": dict(marker="x", color="#d62728", ms=6, label="not heard by its destination"),
-        "collision": dict(marker="*", color="k", mfc="#ffeb3b", ms=9, mew=0.6, label="collision at a receiver"),
-    }
-    points: dict[str, tuple[list[float], list[float]]] = {k: ([], []) for k in styles}
-    for record in rt.medium.records or []:
-        lane = lanes.get((robot_name(record.transmitter), "all" if large else _kind(record)))
-        if lane is None:
-            continue
-        heard = record.dst_heard if record.dst_heard is not None else record.heard_by > 0
-        resend = record.segment is None and record.frame[1] >> 6 > 0  # attempt bits (docs/protocol.md)
-        key = "relayed" if record.relayed else ("lost" if not heard else ("resend" if resend else "heard"))
-        points[key][0].append(record.start_s)
-        points[key][1].append(lane)
-        if record.collided:
-            points["collision"][0].append(record.start_s)
-            points["collision"][1].append(lane + 0.3)
-    for key, style in styles.items():
-        xs, ys = points[key]
-        if xs:
-            ax_radio.plot(xs, ys, ls="none", **style)
-    ax_radio.set_yticks(list(lanes.values()), [name if large else f"{name}  {kind}" for name, kind in lanes],
-                        fontsize=7 if len(lanes) <= 40 else 5)
-    for boundary in range(len(kinds), len(lanes), len(kinds)):
-        ax_radio.axhline(boundary - 0.5, color="0.6", lw=0.6 if not large else 0.3)
-    ax_radio.set_ylim(-0.6, len(lanes) - 0.4)
-    ax_radio.set_xlabel("simulated time [s]")
-    ax_radio.set_title("frames on the air, by radio" + ("" if large else " and kind") + " (one mark per transmission)",
-                       fontsize=9)
-    ax_radio.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
-    ax_radio.grid(True, axis="x", lw=0.3, alpha=0.5)
+    if large:
+        _radio_rates(ax_radio, rt)
+    else:
+        _radio_marks(ax_radio, rt, names)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
@@ -151,3 +119,72 @@ def _speed_rows(fig, ax, rt, names) -> None:
     ax.set_yticks(ticks, [names[i] for i in ticks], fontsize=7)
     ax.set_ylim(len(names) - 0.5, -0.5)
     ax.set_ylabel("robot")
+
+def _radio_marks(ax_radio, rt, names) -> None:
+    """A small team: one mark per transmission, in a lane per radio and message kind."""
+    kinds = KINDS
+    lanes = {(name, kind): i for i, (name, kind) in enumerate((n, k) for n in names for k in kinds)}
+    styles = {  # mark kind -> marker style
+        "heard": dict(marker="|", color="0.35", ms=9, label="heard by its destination"),
+        "resend": dict(marker="|", color="#ff7f0e", ms=11, mew=2, label="heard (resend)"),
+        "relayed": dict(marker="o", mfc="none", color="#1f77b4", ms=5, mew=1.0, label="relayed (this radio relays)"),
+        "lost": dict(marker="x", color="#d62728", ms=6, label="not heard by its destination"),
+        "collision": dict(marker="*", color="k", mfc="#ffeb3b", ms=9, mew=0.6, label="collision at a receiver"),
+    }
+    points: dict[str, tuple[list[float], list[float]]] = {k: ([], []) for k in styles}
+    for record in rt.medium.records or []:
+        lane = lanes.get((robot_name(record.transmitter), _kind(record)))
+        if lane is None:
+            continue
+        heard = record.dst_heard if record.dst_heard is not None else record.heard_by > 0
+        resend = _is_resend(record)
+        key = "relayed" if record.relayed else ("lost" if not heard else ("resend" if resend else "heard"))
+        points[key][0].append(record.start_s)
+        points[key][1].append(lane)
+        if record.collided:
+            points["collision"][0].append(record.start_s)
+            points["collision"][1].append(lane + 0.3)
+    for key, style in styles.items():
+        xs, ys = points[key]
+        if xs:
+            ax_radio.plot(xs, ys, ls="none", **style)
+    ax_radio.set_yticks(list(lanes.values()), [f"{name}  {kind}" for name, kind in lanes], fontsize=7)
+    for boundary in range(len(kinds), len(lanes), len(kinds)):
+        ax_radio.axhline(boundary - 0.5, color="0.6", lw=0.6)
+    ax_radio.set_ylim(-0.6, len(lanes) - 0.4)
+    ax_radio.set_xlabel("simulated time [s]")
+    ax_radio.set_title("frames on the air, by radio and kind (one mark per transmission)", fontsize=9)
+    ax_radio.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
+    ax_radio.grid(True, axis="x", lw=0.3, alpha=0.5)
+
+
+#: Width in s of the bins of a large team's radio panel.
+RATE_BIN_S = 1.0
+
+
+def _radio_rates(ax, rt) -> None:
+    """A large team: what the air carried per second (marks per transmission would be a black
+    band): frames originated, relayed, resent, and receptions lost to collisions."""
+    records = rt.medium.records or []
+    end = max(rt.time, RATE_BIN_S)
+    bins = np.arange(0.0, end + RATE_BIN_S, RATE_BIN_S)
+    series = {
+        "originated (first sends)": [r.start_s for r in records if not r.relayed and not _is_resend(r)],
+        "resent": [r.start_s for r in records if not r.relayed and _is_resend(r)],
+        "relayed copies": [r.start_s for r in records if r.relayed],
+        "with a collision at some receiver": [r.start_s for r in records if r.collided],
+    }
+    colours = ("0.25", "#ff7f0e", "#1f77b4", "#d62728")
+    for (label, times), colour in zip(series.items(), colours):
+        counts, _ = np.histogram(times, bins=bins)
+        ax.step(bins[:-1], counts / RATE_BIN_S, where="post", color=colour, lw=1.2, label=f"{label}: {len(times)}")
+    ax.set_ylabel("frames per second")
+    ax.set_ylim(bottom=0)
+    ax.set_xlabel("simulated time [s]")
+    ax.set_title("the air, per second (all radios)", fontsize=9)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
+    ax.grid(True, lw=0.3, alpha=0.5)
+
+
+def _is_resend(record) -> bool:
+    return record.segment is None and record.frame[1] >> 6 > 0  # attempt bits (docs/protocol.md)
