@@ -270,3 +270,21 @@ def test_a_heartbeat_waits_longer_to_be_relayed_so_that_others_relaying_it_first
     node.receive(heartbeat(1, seq=1, ttl=2, init_ttl=3), 0.02)  # another relay's copy, heard meanwhile
     assert [MessageType(t.msg_type).name for t in node.transmissions(1.0)] == ["STOP", "STOP"]
     assert node.stats.relays_suppressed == 1
+
+
+def test_a_frame_on_its_last_hop_to_another_robot_is_dropped_unopened():
+    # every robot used to open, cache and log each of the thousand frames a second a team of 30 hears
+    node = relay_node()
+    node.receive(stop(1, 3, seq=1, ttl=1), 0.0, rssi_dbm=RSSI_DBM)
+    assert node.stats.dropped_passing == 1 and node.stats.accepted == 0 and node.hops_to(1) is None
+    node.receive(stop(1, 2, seq=2, ttl=1), 0.0, rssi_dbm=RSSI_DBM)  # for us: opened and delivered
+    assert node.stats.accepted == 1 and node.stats.dropped_passing == 1
+
+
+def test_a_last_hop_copy_still_cancels_our_waiting_copies_of_it():
+    node = relay_node(relay_suppress_after=1)
+    frame = stop(1, 3, seq=1, ttl=3)
+    node.receive(frame, 0.0, relay_delay_s=0.01)  # our copies (TTL 2) wait
+    node.receive(with_ttl(frame, 1), 0.005)  # a relay further along sent its last-hop copy
+    assert node.stats.dropped_passing == 0 and node.stats.relays_suppressed == 1
+    assert node.transmissions(1.0) == []

@@ -6,9 +6,9 @@ the relay decision and the outbox; must not know radios, clocks, random numbers 
 # Theory of operation (relaying: Bluetooth Mesh Profile 1.0, 3.4.6; docs/mesh.md)
 # ================================================================================
 #
-# Every frame heard goes through the same steps, in this order; the first that fails drops it
-# and counts it:
-#
+# Every frame heard goes through these steps; the first that fails drops and counts it. Step 0: a
+# frame for another robot with TTL < 2 ends here, dropped unopened (dropped_passing) unless copies
+# of ours wait that it could cancel (30 robots hear a thousand frames a second, most passing by).
 #   1. check: length (10..20 bytes, up to 29 for a segment frame), version, AUTH, CRC-32, source
 #      (frames.read_on_air)                                -> dropped_corrupt / dropped_malformed
 #   2. our own frame heard back (src == our address)      -> dropped_own
@@ -23,9 +23,8 @@ the relay decision and the outbox; must not know radios, clocks, random numbers 
 #      Mesh Profile 4.2.20: a receiver's cache drops the copies it already has);
 #      TTL < 2 -> dropped_ttl.
 #
-# Relay suppression (counter-based, Ni et al., MobiCom 1999; outbox.py): a hit in step 3 on a
-# frame whose relayed copies still wait in the outbox is counted; at relay_suppress_after hits
-# those copies are cancelled. Copies already handed out by transmissions() are the transport's.
+# Relay suppression (counter-based, Ni et al. 1999; outbox.py): step-3 hits on a frame whose copies
+# wait in the outbox are counted; at relay_suppress_after they are cancelled (not those handed out).
 #
 # TTL on send: a unicast control frame to a destination whose Heartbeat we heard and that the
 # neighbour table hears at h hops (not lost) goes out with TTL min(initial_ttl, h + attempt bits),
@@ -33,18 +32,16 @@ the relay decision and the outbox; must not know radios, clocks, random numbers 
 # a destination unknown, lost or never heard in a Heartbeat keeps the endpoint's TTL (Mesh Profile
 # 1.0, 3.6.7: heartbeat hop counts "may be used to determine the TTL"). docs/mesh.md 12.
 #
-# A relay reads the header only (and, for metadata, a segment's SegO/SegN): it never decodes a
-# payload, so it relays message types it does not know.
+# A relay reads the header only (and a segment's SegO/SegN): it relays types it does not know.
 #
 # With a frame sealer (authenticated frames, docs/protocol.md section 12), step 1 opens the frame
 # first: a frame without the AUTH flag, from a source whose epoch is unknown (no Heartbeat heard
 # yet), or whose MIC does not verify is dropped (dropped_unauthenticated, dropped_unknown_epoch,
 # dropped_forged) and goes no further, not even to a relay; after the cache, the replay window
 # (replay.py) drops a frame already accepted or too old (dropped_replay). A frame that opens under
-# a newer epoch of its source emits PeerRestarted. What we send is sealed under our endpoint's
-# epoch; what we relay is re-sealed with TTL - 1 under its source's epoch. The caller draws relay_delay_s (Bluetooth
-# Mesh relays wait a random 0..~20 ms so that neighbours that heard the same frame do not all
-# transmit at once) from its own seeded generator; the node draws no random numbers.
+# a newer epoch of its source emits PeerRestarted. We seal under our endpoint's epoch and re-seal
+# relays with TTL - 1 under the source's. The caller draws relay_delay_s (Bluetooth Mesh relays wait
+# a random 0..~20 ms so that neighbours do not all transmit at once); the node draws nothing.
 
 from __future__ import annotations
 
@@ -74,7 +71,7 @@ from rescuemesh.protocol import (
 from .cache import NetworkCache
 from .config import MeshConfig
 from .events import FrameDelivered, MeshEvent, PeerRestarted
-from .frames import ATTEMPT_SHIFT, FrameKind, FrameView, cache_key, read_logical, read_on_air, with_ttl
+from .frames import ATTEMPT_SHIFT, TTL_MASK, FrameKind, FrameView, cache_key, read_logical, read_on_air, with_ttl
 from .neighbours import NeighbourInfo, NeighbourTable
 from .outbox import Outbox
 from .reassembly import SarReceiver
@@ -196,6 +193,10 @@ class MeshNode:
         stats = self.stats
         stats.received += 1
         data = bytes(data)
+        if len(data) > 3 and data[3] not in (self.address, BROADCAST) and data[0] & TTL_MASK < 2 \
+                and not self._outbox.holds_relays():  # step 0
+            stats.dropped_passing += 1
+            return
         if self.sealer is not None:
             data = self._open(data)
             if data is None:

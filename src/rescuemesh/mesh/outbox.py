@@ -78,6 +78,10 @@ class Outbox(Generic[T]):
             else:  # another copy of a frame already waiting (Relay Retransmit, or a late echo)
                 waiting.orders.add(order)
 
+    def holds_relays(self) -> bool:
+        """Whether any suppressible relayed copy waits here."""
+        return bool(self._waiting)
+
     def waiting(self, key: bytes) -> bool:
         """Whether relayed copies of the frame with `key` wait here (suppression on only)."""
         return key in self._waiting

@@ -19,11 +19,12 @@ class MeshStats:
     relay_copies_suppressed: int = 0  # copies those cancellations kept off the air
     relays_expired: int = 0  # relayed copies dropped after waiting relay_max_wait_s past their time
     sent: int = 0  # logical frames accepted by send()
-    sent_short_ttl: int = 0  # of those, unicast sent with TTL h + 1 < initial_ttl (unicast_ttl_from_hops)
+    sent_short_ttl: int = 0  # of those, unicast sent with a TTL from hops < initial_ttl (unicast_ttl_from_hops)
     transmitted: int = 0  # Transmissions drained by transmissions()
     bytes_transmitted: int = 0
     dropped_cached: int = 0  # already in the network message cache
     dropped_own: int = 0  # our own frame heard back
+    dropped_passing: int = 0  # for another robot with TTL < 2 (its last hop): dropped unopened
     dropped_ttl: int = 0  # not for us, TTL < 2: not relayed
     dropped_corrupt: int = 0  # CRC mismatch
     dropped_unauthenticated: int = 0  # no AUTH flag in a team that authenticates
