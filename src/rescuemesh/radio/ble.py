@@ -138,10 +138,6 @@ class LinkBudget:
     margin_db: float  # mean power minus sensitivity
 
 
-#: Position pairs whose mean power is remembered as given (exact floats), before the cell cache.
-_RECENT_PAIRS = 4096
-
-
 @register_channel
 class BleChannel(ChannelModel):
     """BLE 1M advertising on an office map: P.1238 path loss, COST 231 walls, shadowing, Rician fading.
@@ -168,7 +164,6 @@ class BleChannel(ChannelModel):
         self._floor = p.sensitivity_dbm - p.out_of_range_margin_db  # audible iff mean power >= this
         self._k = p.rician_k
         self._mean_power_cells = lru_cache(maxsize=cache_pairs)(self._compute_mean_power_cells)
-        self._recent: dict[tuple[Point, Point], float] = {}
         self._tables: dict[int, np.ndarray] = {}
         self._bits: dict[int, int] = {}
 
@@ -211,15 +206,6 @@ class BleChannel(ChannelModel):
         return self.link_budget(self._centre(ai, aj), self._centre(bi, bj)).mean_rx_power_dbm
 
     def mean_rx_power_dbm(self, tx_xy: Point, rx_xy: Point) -> float:
-        key = (tx_xy, rx_xy)  # a medium asks the same pair for every frame of a control step
-        power = self._recent.get(key)
-        if power is None:
-            if len(self._recent) >= _RECENT_PAIRS:
-                self._recent.clear()
-            power = self._recent[key] = self._mean_power_by_cells(tx_xy, rx_xy)
-        return power
-
-    def _mean_power_by_cells(self, tx_xy: Point, rx_xy: Point) -> float:
         q = self._quantum
         ai = math.floor((tx_xy[0] - self._ox) / q)
         aj = math.floor((tx_xy[1] - self._oy) / q)
