@@ -40,6 +40,15 @@ def inflation_cost(
     return np.where(c < inscribed_radius, LETHAL, out).astype(np.float32)
 
 
+def grid_clearance(grid: OccupancyGrid) -> np.ndarray:
+    """Distance in m from each cell's centre to the nearest obstacle cell's surface (EDT distance
+    to its centre minus half a cell); inf everywhere on a grid without obstacles."""
+    occupied = np.asarray(grid.occupied, dtype=bool)
+    if not occupied.any():
+        return np.full(occupied.shape, np.inf)
+    return ndimage.distance_transform_edt(~occupied) * grid.resolution - 0.5 * grid.resolution
+
+
 class Costmap:
     """Traversal costs over an OccupancyGrid, in the grid's cells and frame.
 
@@ -68,12 +77,7 @@ class Costmap:
         self.inscribed_radius = float(inscribed_radius)
         self.inflation_radius = float(inflation_radius)
         self.cost_scaling = float(cost_scaling)
-        occupied = np.asarray(grid.occupied, dtype=bool)
-        if occupied.any():
-            edt = ndimage.distance_transform_edt(~occupied)
-            clearance = edt * self.resolution - 0.5 * self.resolution
-        else:
-            clearance = np.full(occupied.shape, np.inf)
+        clearance = grid_clearance(grid)
         self.static_clearance = clearance.astype(np.float32)
         self.static_cost = inflation_cost(clearance, self.inscribed_radius, self.inflation_radius, self.cost_scaling)
         self._cost = self.static_cost

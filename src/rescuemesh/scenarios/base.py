@@ -249,10 +249,15 @@ def mean_distance(a: list[TrajectorySample], b: list[TrajectorySample], t0: floa
     return sum(p.distance_to(q) for p, q in pairs) / len(pairs)
 
 
+def _last_finished(brain, behaviour: str):
+    """The brain's record of the last `behaviour` it finished, or None."""
+    return next((f for f in reversed(brain.finished) if f.name == behaviour), None)
+
+
 def why_not(brain, behaviour: str) -> str:
     """' (the reason)' when the last `behaviour` ended in anything but DONE, '' otherwise: the
     summary says why a leader did not get there ("no path") instead of a bare unchecked box."""
-    last = next((f for f in reversed(brain.finished) if f.name == behaviour), None)
+    last = _last_finished(brain, behaviour)
     if last is None or last.result == ResultCode.DONE:
         return ""
     return f" ({last.result.name}: {last.reason})" if last.reason else f" ({last.result.name})"
@@ -260,4 +265,5 @@ def why_not(brain, behaviour: str) -> str:
 
 def last_result(brain, behaviour: str) -> ResultCode | None:
     """The final result of the last `behaviour` the brain finished, or None."""
-    return next((f.result for f in reversed(brain.finished) if f.name == behaviour), None)
+    last = _last_finished(brain, behaviour)
+    return None if last is None else last.result

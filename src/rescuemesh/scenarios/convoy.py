@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from functools import cached_property
 
 from rescuemesh.geometry import Pose2D
 from rescuemesh.protocol import ResultCode
@@ -39,7 +40,6 @@ OFFICE_TEAM_REGIONS = ("room_east", "room_northeast")
 #: shorter way to its leader across two legs.
 HALL_ROUTE = ((7.8, 5.0), (7.8, 8.2), (1.0, 8.2), (1.0, 1.0), (6.5, 1.0), (6.5, 2.9), (3.2, 2.9), (3.2, 6.6),
               (6.0, 6.6))
-GOAL_ROOM = "hall"
 #: Commands (each the protocol's three sends) a link of the chain may take to form: the air of a
 #: team of 30 forming at 20 % extra loss gave a Follow up three times in a row on one seed of three.
 LINK_ATTEMPTS = 8
@@ -75,7 +75,9 @@ class ConvoyScenario(Scenario):
 
     # --- set-up ----------------------------------------------------------------------------------
 
+    @cached_property
     def route(self) -> list[Pose2D]:
+        """The leader's goals in order: --goal alone, else HALL_ROUTE on the office, else the map's goal."""
         if self.options.goal is not None:
             return [self.options.goal]
         if self.on_office:
@@ -86,8 +88,9 @@ class ConvoyScenario(Scenario):
         raise ScenarioError(f"map {self.map.name!r} has no default goal for the convoy's leader: give --goal X,Y")
 
     def validate(self) -> None:
-        for index, point in enumerate(self.route()):
-            self.require_free("goal" if len(self.route()) == 1 else f"route point {index + 1}", point)
+        route = self.route
+        for index, point in enumerate(route):
+            self.require_free("goal" if len(route) == 1 else f"route point {index + 1}", point)
 
     def default_starts(self) -> dict[str, Pose2D]:
         given = self.options.starts
@@ -100,7 +103,7 @@ class ConvoyScenario(Scenario):
             raise ScenarioError(f"map {self.map.name!r} has no start for robot_1: give --start robot_1=X,Y,YAW")
         allowed = [self.map.regions[r] for r in OFFICE_TEAM_REGIONS] if self.on_office and "robot_1" not in given else []
         self.require_free("start of robot_1", leader)
-        goal = self.route()[0]
+        goal = self.route[0]
         try:
             poses = place_behind(self.map.grid, leader, (goal.x, goal.y), len(self.robots), allowed=allowed)
         except PlacementError as error:
@@ -119,15 +122,13 @@ class ConvoyScenario(Scenario):
             self._form(rt, now)
             return
         leader = rt.brain(self.robots[0])
-        route = self.route()
-        if self._leg < len(route) and leader.running is None:
+        route = self.route
+        if self._leg < len(route) and leader.running is None:  # starting, or a leg has ended
             result = last_result(leader, "navigate")
-            if self._leg >= 0 and result != ResultCode.DONE:
-                self._leader_result, self.arrived_s, self._leg = result, now, len(route)
-            elif self._leg + 1 < len(route):
+            if self._leg + 1 < len(route) and (self._leg < 0 or result == ResultCode.DONE):
                 self._leg += 1
                 leader.navigate_to(route[self._leg], now)
-            else:
+            else:  # the last leg ended, or a leg failed: the route is over
                 self._leader_result, self.arrived_s, self._leg = result, now, len(route)
         if self.arrived_s is not None and self.settled_s is None:
             if all(settled(rt, name, self.arrived_s) for name in self.robots):
@@ -154,17 +155,15 @@ class ConvoyScenario(Scenario):
         names = self.robots
         ends = [rt.trajectories[name][-1].pose for name in names]
         gaps = [ends[k].distance_to(ends[k + 1]) for k in range(len(ends) - 1)]
-        accepted = sum(1 for link in self._links if link.confirmed() is not None
-                       and link.confirmed().result == ResultCode.ACCEPTED)
-        route = self.route()
+        answers = [link.confirmed() for link in self._links]
+        accepted = sum(1 for answer in answers if answer is not None and answer.result == ResultCode.ACCEPTED)
+        route = self.route
         criteria = [
             (f"Follow confirmed ACCEPTED on every link ({accepted}/{len(names) - 1})", accepted == len(names) - 1),
             (f"leader drove its route ({len(route)} point{'s' if len(route) > 1 else ''})"
              f"{why_not(rt.brain(names[0]), 'navigate')}", self._leader_result == ResultCode.DONE),
         ]
-        room = GOAL_ROOM if self.on_office and self.options.goal is None else None
-        if room is None and self.map.regions:
-            room = self.map.region_of(route[-1].x, route[-1].y)
+        room = self.map.region_of(route[-1].x, route[-1].y) if self.map.regions else None  # the hall, on the office
         if room is not None:
             inside = [self.map.region_of(p.x, p.y) == room for p in ends]
             outside = [name for name, ok in zip(names, inside) if not ok]

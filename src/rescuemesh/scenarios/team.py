@@ -26,6 +26,7 @@ from skimage.graph import MCP_Geometric
 from rescuemesh.geometry import Pose2D
 from rescuemesh.maps.grid import OccupancyGrid
 from rescuemesh.maps.model import Rect
+from rescuemesh.nav.costmap import grid_clearance
 from rescuemesh.robot.naming import MAX_ROBOT_ADDRESS
 
 #: Largest team a scenario accepts: every robot needs a unicast address (robot/naming.py).
@@ -53,7 +54,7 @@ def place_behind(grid: OccupancyGrid, leader: Pose2D, goal: tuple[float, float],
     module docstring), each facing the way to the goal. PlacementError when fewer fit."""
     if count < 1:
         raise PlacementError(f"a team needs at least one robot, got {count}")
-    free = _clearance_mask(grid, clearance_m)
+    free = grid_clearance(grid) >= clearance_m  # cells whose centre keeps clearance_m from every obstacle
     to_goal, toward_goal = _path_distance(grid, free, goal)
     leader_cell = grid.world_to_cell(leader.x, leader.y)
     if not _inside(grid, leader_cell) or not np.isfinite(to_goal[leader_cell]):
@@ -112,17 +113,6 @@ def _line_of_sight(grid: OccupancyGrid, free: np.ndarray, a: tuple[float, float]
 
 def _inside(grid: OccupancyGrid, cell: tuple[int, int]) -> bool:
     return grid.in_bounds(*cell)
-
-
-def _clearance_mask(grid: OccupancyGrid, clearance_m: float) -> np.ndarray:
-    """Cells whose centre is at least `clearance_m` from every obstacle cell's surface."""
-    from scipy import ndimage
-
-    occupied = np.asarray(grid.occupied, dtype=bool)
-    if not occupied.any():
-        return np.ones(occupied.shape, dtype=bool)
-    clearance = ndimage.distance_transform_edt(~occupied) * grid.resolution - 0.5 * grid.resolution
-    return clearance >= clearance_m
 
 
 def _path_distance(grid: OccupancyGrid, free: np.ndarray, origin: tuple[float, float]):
