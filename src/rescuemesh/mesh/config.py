@@ -22,6 +22,11 @@ def _non_negative(name: str, value: object) -> None:
         raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
 
 
+def _ttl(name: str, value: object, what: str = "") -> None:
+    if not (isinstance(value, int) and 0 <= value <= MAX_TTL):
+        raise ValueError(f"{name} must be 0..{MAX_TTL}{what}, got {value!r}")
+
+
 def _count(name: str, value: object, low: int) -> None:
     if not (isinstance(value, int) and not isinstance(value, bool) and value >= low):
         raise ValueError(f"{name} must be an int >= {low}, got {value!r}")
@@ -128,8 +133,7 @@ class MeshConfig:
             raise ValueError(f"unicast_ttl_from_hops must be a bool, got {self.unicast_ttl_from_hops!r}")
         if self.relay_suppress_after is not None:
             _count("relay_suppress_after", self.relay_suppress_after, 0)
-        if not (isinstance(self.initial_ttl, int) and 0 <= self.initial_ttl <= MAX_TTL):
-            raise ValueError(f"initial_ttl must be 0..{MAX_TTL} hops, got {self.initial_ttl!r}")
+        _ttl("initial_ttl", self.initial_ttl, " hops")
         for name in ("cache_lifetime_s", "heartbeat_period_s", "neighbour_expiry_s", "segment_interval_s",
                      "sar_ack_base_s", "sar_retransmit_base_s", "duplicate_ack_interval_s",
                      "incomplete_timeout_s"):
@@ -146,8 +150,8 @@ class MeshConfig:
         _positive("heartbeat_relay_delay_scale", self.heartbeat_relay_delay_scale)
         _count("unicast_ttl_slack", self.unicast_ttl_slack, 0)
         _count("sparse_neighbours", self.sparse_neighbours, 0)
-        if self.heartbeat_ttl is not None and not (isinstance(self.heartbeat_ttl, int) and 0 <= self.heartbeat_ttl <= MAX_TTL):
-            raise ValueError(f"heartbeat_ttl must be 0..{MAX_TTL} or None, got {self.heartbeat_ttl!r}")
+        if self.heartbeat_ttl is not None:
+            _ttl("heartbeat_ttl", self.heartbeat_ttl, " hops or None")
         if self.relay_max_wait_s != math.inf:  # inf: relays never go stale
             _positive("relay_max_wait_s", self.relay_max_wait_s)
         if self.max_reassemblies_per_source > self.max_reassemblies:

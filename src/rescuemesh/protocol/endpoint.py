@@ -62,7 +62,8 @@ class EndpointConfig:
     def __post_init__(self) -> None:
         if not (isinstance(self.initial_ttl, int) and 0 <= self.initial_ttl <= MAX_TTL):
             raise ValueError(f"initial_ttl must be 0..{MAX_TTL}, got {self.initial_ttl!r}")
-        if self.heartbeat_ttl is not None and not (isinstance(self.heartbeat_ttl, int) and 0 <= self.heartbeat_ttl <= MAX_TTL):
+        heartbeat_ttl = self.heartbeat_ttl
+        if heartbeat_ttl is not None and not (isinstance(heartbeat_ttl, int) and 0 <= heartbeat_ttl <= MAX_TTL):
             raise ValueError(f"heartbeat_ttl must be 0..{MAX_TTL} or None, got {self.heartbeat_ttl!r}")
         if not (isinstance(self.initial_seq, int) and 0 <= self.initial_seq <= MAX_SEQ):
             raise ValueError(f"initial_seq must be 0..{MAX_SEQ}, got {self.initial_seq!r}")

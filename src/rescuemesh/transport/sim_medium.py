@@ -255,8 +255,7 @@ class SimMedium:
     def pump(self, now: float) -> None:
         """Advance the medium to `now`: every event due by then, in time order. Frames the stacks
         queued since the last pump or flush leave at that earlier time."""
-        self.flush(self._now)
-        self._xy.clear()
+        self.flush(self._now)  # also forgets the positions read before the world moved
         heap = self._heap
         for _ in range(MAX_EVENTS_PER_PUMP):
             if not heap or heap[0][0] > now:
