@@ -10,65 +10,20 @@ of the physics step.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
-from enum import Enum
+from dataclasses import dataclass
 
 import numpy as np
 
 from rescuemesh.geometry import Pose2D
 from rescuemesh.maps import MapModel
-from rescuemesh.mesh import TEAM_RELAY_RETRANSMIT_COUNT, MeshConfig, MeshNode, NetworkStack
-from rescuemesh.mesh.keys import team_key_from_seed
-from rescuemesh.mesh.replay import DUPLICATE_MEMORY
-from rescuemesh.mesh.security import FrameSealer
-from rescuemesh.nav import Costmap, NavigateToPose
-from rescuemesh.protocol import Endpoint, EndpointConfig, ReliabilityConfig
+from rescuemesh.mesh import NetworkStack
+from rescuemesh.nav import Costmap
 from rescuemesh.radio import make_channel
-from rescuemesh.robot import BrainConfig, RobotBrain, robot_address
+from rescuemesh.robot import RobotBrain, robot_address
+from rescuemesh.runtime.assembly import assemble_robot, team_sealer
+from rescuemesh.runtime.config import RadioKind, SimConfig  # noqa: F401  (RadioKind: re-exported)
 from rescuemesh.sim import World
 from rescuemesh.transport import SimMedium
-
-
-class RadioKind(Enum):
-    """The channel model a run uses (`--radio`)."""
-
-    BLE = "ble"  # path loss, walls, shadowing, fading on the map (docs/radio.md)
-    DISC = "disc"  # the paper's 10 m disc, no walls
-
-
-@dataclass(frozen=True)
-class SimConfig:
-    """How to run: timing in s, the radio, the mesh, and the protocol's retry settings.
-
-    `loss`: extra independent per-reception loss on top of the channel. `relay`: every robot has
-    the relay feature (False: `--no-relay`). `radio_params`: channel settings overriding defaults.
-    `secure`: authenticated, encrypted frames (False: `--insecure`, CRC frames); `team_key`: the
-    team key (None: derived from the seed, for simulation only).
-    """
-
-    seed: int = 0
-    physics_dt: float = 0.005
-    control_dt: float = 0.05
-    loss: float = 0.0
-    radio: RadioKind = RadioKind.BLE
-    radio_params: dict = field(default_factory=dict)
-    relay: bool = True
-    secure: bool = True
-    team_key: bytes | None = None
-    ack_timeout_s: float = 0.15
-    max_sends: int = 3
-    brain: BrainConfig = field(default_factory=BrainConfig)
-    kinds: dict = field(default_factory=dict)  # robot name -> RobotKind (default: ground)
-    mesh: MeshConfig = field(default_factory=lambda: MeshConfig(relay_retransmit_count=TEAM_RELAY_RETRANSMIT_COUNT))
-
-    def __post_init__(self) -> None:
-        ratio = self.control_dt / self.physics_dt
-        if self.physics_dt <= 0 or self.physics_dt > 0.005:
-            raise ValueError(f"physics step must be in (0, 0.005] s, got {self.physics_dt}")
-        if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
-            raise ValueError(f"control step {self.control_dt} s is not a whole multiple of the physics step")
-        if self.brain.heartbeat_period_s != self.mesh.heartbeat_period_s:
-            raise ValueError("the brain's and the mesh layer's heartbeat periods differ")
 
 
 @dataclass(frozen=True, slots=True)
@@ -90,26 +45,15 @@ class SimRuntime:
         self.world = World(map_model, starts, physics_dt=config.physics_dt, seed=world_seed, kinds=config.kinds)
         self.channel = make_channel(config.radio.value, grid=map_model.grid, seed=radio_seed, **config.radio_params)
         self.medium = SimMedium(self.channel, radio_seed, extra_loss=config.loss, record=True)
-        reliability = ReliabilityConfig(ack_timeout_s=config.ack_timeout_s, max_sends=config.max_sends)
-        self.sealer = None
-        if config.secure:
-            key = config.team_key if config.team_key is not None else team_key_from_seed(config.seed)
-            self.sealer = FrameSealer.from_team_key(key)
-            # replay protection decides what is new; the duplicate cache must remember as many commands
-            reliability = replace(reliability, duplicate_window_s=float("inf"), duplicate_cache_size=DUPLICATE_MEMORY)
-        mesh = replace(config.mesh, relay=config.relay)
+        self.sealer = team_sealer(config)
         self.costmap = Costmap(map_model.grid)
         self.brains: dict[str, RobotBrain] = {}
         self.stacks: dict[str, NetworkStack] = {}
         for name in starts:
             body = self.world.bodies[name]
+            self.brains[name], stack = assemble_robot(name, body, self.costmap, config, self.sealer, starts[name])
+            self.stacks[name] = stack
             address = robot_address(name)
-            endpoint = Endpoint(address, EndpointConfig(reliability=reliability, initial_ttl=mesh.initial_ttl,
-                                                        heartbeat_ttl=mesh.heartbeat_ttl))
-            stack = self.stacks[name] = NetworkStack(endpoint, MeshNode(address, mesh, self.sealer))
-            nav = NavigateToPose(self.costmap)
-            brain_config = config.brain if config.brain.base is not None else replace(config.brain, base=starts[name])
-            self.brains[name] = RobotBrain(name, body, stack, nav, self.costmap, brain_config)
             self.medium.attach(address, stack, _position_of(body))
         self.time = 0.0
         self.ticks = 0

@@ -1,0 +1,55 @@
+"""What a run is configured with: the channel kind, timing, the mesh, the protocol's retries.
+
+Owns: SimConfig and RadioKind, plain data a world process and a robot process both read. Must not
+know: MuJoCo, Zenoh, how a team is assembled or stepped.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+
+from rescuemesh.mesh import TEAM_RELAY_RETRANSMIT_COUNT, MeshConfig
+from rescuemesh.robot import BrainConfig
+
+
+class RadioKind(Enum):
+    """The channel model a run uses (`--radio`)."""
+
+    BLE = "ble"  # path loss, walls, shadowing, fading on the map (docs/radio.md)
+    DISC = "disc"  # the paper's 10 m disc, no walls
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """How to run: timing in s, the radio, the mesh, and the protocol's retry settings.
+
+    `loss`: extra independent per-reception loss on top of the channel. `relay`: every robot has
+    the relay feature (False: `--no-relay`). `radio_params`: channel settings overriding defaults.
+    `secure`: authenticated, encrypted frames (False: `--insecure`, CRC frames); `team_key`: the
+    team key (None: derived from the seed, for simulation only).
+    """
+
+    seed: int = 0
+    physics_dt: float = 0.005
+    control_dt: float = 0.05
+    loss: float = 0.0
+    radio: RadioKind = RadioKind.BLE
+    radio_params: dict = field(default_factory=dict)
+    relay: bool = True
+    secure: bool = True
+    team_key: bytes | None = None
+    ack_timeout_s: float = 0.15
+    max_sends: int = 3
+    brain: BrainConfig = field(default_factory=BrainConfig)
+    kinds: dict = field(default_factory=dict)  # robot name -> RobotKind (default: ground)
+    mesh: MeshConfig = field(default_factory=lambda: MeshConfig(relay_retransmit_count=TEAM_RELAY_RETRANSMIT_COUNT))
+
+    def __post_init__(self) -> None:
+        ratio = self.control_dt / self.physics_dt
+        if self.physics_dt <= 0 or self.physics_dt > 0.005:
+            raise ValueError(f"physics step must be in (0, 0.005] s, got {self.physics_dt}")
+        if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+            raise ValueError(f"control step {self.control_dt} s is not a whole multiple of the physics step")
+        if self.brain.heartbeat_period_s != self.mesh.heartbeat_period_s:
+            raise ValueError("the brain's and the mesh layer's heartbeat periods differ")
