@@ -125,6 +125,21 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--insecure", action="store_true",
                      help="CRC-32 frames, no authentication or encryption (anyone on the radio can command)")
     run.add_argument("--quiet", action="store_true", help="no progress display")
+    run.add_argument("--processes", action="store_true",
+                     help="each robot in its own process, the world in this one, over Zenoh on loopback")
+    run.add_argument("--realtime", action="store_true", help="pace the run to the wall clock (default: as fast as it goes)")
+    world = sub.add_parser("world", parents=[run], add_help=False,
+                           help="run a scenario's world and wait for robot processes started by hand")
+    world.add_argument("--listen", default="tcp/127.0.0.1:7447", metavar="tcp/HOST:PORT",
+                       help="where robots connect (default tcp/127.0.0.1:7447)")
+    world.add_argument("--run-id", default="default", help="keeps several runs on one network apart")
+    world.add_argument("--wait", type=float, default=120.0, metavar="S", help="how long to wait for the robots")
+    robot = sub.add_parser("robot", help="run one robot's software: brain, navigation, protocol, mesh")
+    robot.add_argument("--name", required=True, help="robot name, robot_1 .. robot_254")
+    robot.add_argument("--connect", required=True, metavar="tcp/HOST:PORT", help="the world's endpoint")
+    robot.add_argument("--run-id", default="default", help="the world's run id (default: default)")
+    robot.add_argument("--key", type=Path, default=None, metavar="FILE", help="team key file, when the world uses one")
+    robot.add_argument("--wait", type=float, default=30.0, metavar="S", help="how long to wait for the world")
     sub.add_parser("scenarios", help="list the scenarios")
     keys = sub.add_parser("keys", help="team keys")
     keys_sub = keys.add_subparsers(dest="keys_command", required=True, parser_class=_Parser)
@@ -181,6 +196,8 @@ def _main(argv: list[str] | None) -> int:
             from rescuemesh.runtime.ble_check import main_ble_check
 
             return main_ble_check(args.hci, sys.stdout, err=sys.stderr)
+        if args.command == "robot":
+            return _robot(args)
         if args.command == "bench":
             from rescuemesh.bench import run_bench
 
@@ -211,7 +228,8 @@ def _run(args) -> int:
     from rescuemesh.maps import MapError
     from rescuemesh.runtime import RadioKind
     from rescuemesh.scenarios import ScenarioError, ScenarioOptions
-    from rescuemesh.scenarios.runner import run_scenario
+    from rescuemesh.runtime.control import ControlError
+    from rescuemesh.scenarios.runner import ProcessOptions, run_scenario
 
     if not (0.0 <= args.loss < 1.0):
         raise UsageError(f"--loss must be in [0, 1), got {args.loss}")
@@ -229,9 +247,26 @@ def _run(args) -> int:
                               relay=not args.no_relay, outage_s=args.outage, robots=args.robots, secure=not args.insecure,
                               team_key=key, key_source=key_source)
     out = _writable_folder(args.out or Path("out") / args.scenario)
+    processes = None
+    if args.command == "world":
+        if not 0 < args.wait < math.inf:
+            raise UsageError(f"--wait must be a finite number of seconds > 0, got {args.wait}")
+        processes = ProcessOptions(listen=_endpoint(args.listen), run_id=_run_id(args.run_id), spawn=False,
+                                   key_file=args.key, join_timeout_s=args.wait)
+        print(f"world {args.scenario}: waiting for robots at {args.listen} (run {args.run_id!r}); start each with\n"
+              f"  rescuemesh robot --name robot_N --connect {args.listen}"
+              + (f" --run-id {args.run_id}" if args.run_id != "default" else ""), file=sys.stderr)
+    elif args.processes:
+        processes = ProcessOptions(key_file=args.key)
     progress = None if args.quiet else _Progress(args.scenario)
     try:
-        outcome = run_scenario(args.scenario, options, map_path=args.map, out_dir=out, progress=progress)
+        outcome = run_scenario(args.scenario, options, map_path=args.map, out_dir=out, progress=progress,
+                               processes=processes, realtime=args.realtime)
+    except ControlError as error:
+        if progress:
+            progress.clear()
+        print(f"rescuemesh: error: {error}", file=sys.stderr)
+        return EXIT_FAILED
     except (ScenarioError, MapError, ValueError) as error:
         if progress:
             progress.clear()
@@ -240,6 +275,51 @@ def _run(args) -> int:
         progress.clear()
     _summary(outcome)
     return EXIT_OK if outcome.verdict.success else EXIT_FAILED
+
+
+def _endpoint(text: str) -> str:
+    from rescuemesh.runtime.control import check_endpoint
+
+    try:
+        return check_endpoint(text)
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+
+
+def _run_id(text: str) -> str:
+    from rescuemesh.runtime.control import Keys
+
+    try:
+        return Keys(text).run
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+
+
+def _robot(args) -> int:
+    from rescuemesh.robot import robot_address
+    from rescuemesh.runtime.control import ControlError
+    from rescuemesh.runtime.robot_process import serve_robot
+
+    try:
+        robot_address(args.name)
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    if not 0 < args.wait < math.inf:
+        raise UsageError(f"--wait must be a finite number of seconds > 0, got {args.wait}")
+    key = None
+    if args.key is not None:
+        from rescuemesh.mesh.keys import KeyFileError, load_team_key
+
+        try:
+            key = load_team_key(args.key)
+        except KeyFileError as error:
+            raise UsageError(str(error)) from None
+    try:
+        return serve_robot(args.name, _endpoint(args.connect), run=_run_id(args.run_id), team_key=key,
+                           wait_s=args.wait)
+    except ControlError as error:
+        print(f"rescuemesh: error: {error}", file=sys.stderr)
+        return EXIT_FAILED
 
 
 class _Progress:

@@ -45,20 +45,30 @@ class SimRuntime:
         self.world = World(map_model, starts, physics_dt=config.physics_dt, seed=world_seed, kinds=config.kinds)
         self.channel = make_channel(config.radio.value, grid=map_model.grid, seed=radio_seed, **config.radio_params)
         self.medium = SimMedium(self.channel, radio_seed, extra_loss=config.loss, record=True)
-        self.sealer = team_sealer(config)
-        self.costmap = Costmap(map_model.grid)
         self.brains: dict[str, RobotBrain] = {}
         self.stacks: dict[str, NetworkStack] = {}
-        for name in starts:
-            body = self.world.bodies[name]
-            self.brains[name], stack = assemble_robot(name, body, self.costmap, config, self.sealer, starts[name])
-            self.stacks[name] = stack
-            address = robot_address(name)
-            self.medium.attach(address, stack, _position_of(body))
+        self._make_team(starts)
         self.time = 0.0
         self.ticks = 0
         self.trajectories: dict[str, list[TrajectorySample]] = {name: [] for name in starts}
         self._record()
+
+    def _make_team(self, starts: dict[str, Pose2D]) -> None:
+        """Each robot's brain and stack, here in this process, its radio on the medium."""
+        self.sealer = team_sealer(self.config)
+        self.costmap = Costmap(self.map.grid)
+        for name in starts:
+            body = self.world.bodies[name]
+            self.brains[name], stack = assemble_robot(name, body, self.costmap, self.config, self.sealer, starts[name])
+            self.stacks[name] = stack
+            self.medium.attach(robot_address(name), stack, _position_of(body))
+
+    def _step_robots(self, now: float) -> None:
+        for brain in self.brains.values():
+            brain.step(now)
+
+    def _collect_robots(self, now: float) -> None:
+        """Before the medium takes what the stacks send: nothing to do when the robots are here."""
 
     def brain(self, name: str) -> RobotBrain:
         try:
@@ -68,7 +78,8 @@ class SimRuntime:
 
     def set_radio(self, name: str, enabled: bool) -> None:
         """Switch robot `name`'s radio off (it neither sends nor hears) or back on, now."""
-        self.medium.set_radio_enabled(robot_address(self.brain(name).name), enabled, self.time)
+        self.brain(name)  # an unknown name: ValueError naming the team
+        self.medium.set_radio_enabled(robot_address(name), enabled, self.time)
 
     def step(self, script: Callable[["SimRuntime"], None] | None = None) -> None:
         """One control step: physics, radio, brains, then `script` (a mission), then transmit."""
@@ -77,10 +88,10 @@ class SimRuntime:
         self.world.step_to(now)
         self.time = now
         self.medium.pump(now)
-        for brain in self.brains.values():
-            brain.step(now)
+        self._step_robots(now)
         if script is not None:
             script(self)
+        self._collect_robots(now)
         self.medium.flush(now)  # what the brains sent leaves now, not at the next tick
         self._record()
 

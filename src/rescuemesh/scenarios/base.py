@@ -107,6 +107,9 @@ class Scenario(abc.ABC):
     takes_outage: ClassVar[bool] = False
     #: Whether --robots N means anything to this scenario (it then sets `robots` from it).
     takes_team_size: ClassVar[bool] = False
+    #: Whether the scenario runs with each robot in its own process (--processes): its script and
+    #: criteria only read and call brains, never the robots' internals in place.
+    runs_as_processes: ClassVar[bool] = False
     #: The team of this scenario.
     robots: ClassVar[tuple[str, ...]] = ROBOTS
     #: Robots this scenario adds to the map's starts on the packaged office: name -> (pose, what

@@ -21,6 +21,7 @@ class FollowScenario(Scenario):
     summary = "robot_1 drives through a doorway into another room; robot_2 follows it; robot_3 stays put"
     time_limit_s = 120.0
     leader, follower = "robot_1", "robot_2"
+    runs_as_processes = True
 
     def validate(self) -> None:
         self.require_free("goal", self.goal())

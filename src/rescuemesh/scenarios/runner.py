@@ -6,17 +6,35 @@ Owns: the run loop around a scenario and its wall-clock timing. Must not know: a
 from __future__ import annotations
 
 import time
+import os
+import tempfile
 from collections.abc import Callable
+from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 
 from rescuemesh.maps import MapModel, load_map, office_map_path
 from rescuemesh.report import build_result, plot_timeline, plot_trajectories, write_result
 from rescuemesh.runtime import SimRuntime
-from rescuemesh.scenarios import ScenarioOptions, Verdict, get_scenario
+from rescuemesh.scenarios import ScenarioError, ScenarioOptions, Verdict, get_scenario
 
 #: How often the progress callback is called, in simulated seconds.
 PROGRESS_PERIOD_S = 1.0
+
+
+@dataclass(frozen=True)
+class ProcessOptions:
+    """Run the robots as separate processes (`--processes`, `rescuemesh world`).
+
+    `listen`: the world's Zenoh endpoint (None: a free port on 127.0.0.1). `spawn`: start the robot
+    processes here (False: wait for robots started by hand). `key_file`: the team key file the robot
+    processes read themselves (the key never crosses the control plane)."""
+
+    listen: str | None = None
+    run_id: str = "default"
+    spawn: bool = True
+    key_file: Path | None = None
+    join_timeout_s: float = 60.0
 
 
 @dataclass
@@ -29,41 +47,85 @@ class RunOutcome:
 
 def run_scenario(name: str, options: ScenarioOptions, *, map_path: Path | None = None,
                  out_dir: Path | None = None,
-                 progress: Callable[[float, float], None] | None = None) -> RunOutcome:
+                 progress: Callable[[float, float], None] | None = None,
+                 processes: ProcessOptions | None = None, realtime: bool = False) -> RunOutcome:
     """Run scenario `name`. Raises ScenarioError / MapError / ValueError for bad options."""
     cls = get_scenario(name)
     map_model: MapModel = load_map(map_path or office_map_path())
     scenario = cls(options, map_model)
     config = scenario.sim_config()
+    if processes is not None and not cls.runs_as_processes:
+        from rescuemesh.scenarios import SCENARIOS
+
+        able = ", ".join(n for n, c in SCENARIOS.items() if c.runs_as_processes)
+        raise ScenarioError(f"scenario {name} does not run with --processes yet (these do: {able})")
     wall_start = time.perf_counter()
-    rt = SimRuntime(map_model, scenario.starts(), config)
-    next_report = 0.0
-    if progress:
-        progress(rt.time, scenario.limit_s)
-        next_report = PROGRESS_PERIOD_S
-    while rt.time < scenario.limit_s:
-        rt.step(scenario.tick)
-        if progress and rt.time >= next_report:
+    with ExitStack() as cleanup:
+        rt = _runtime(scenario, map_model, config, processes, out_dir, cleanup)
+        next_report = 0.0
+        if progress:
             progress(rt.time, scenario.limit_s)
-            next_report += PROGRESS_PERIOD_S
-        if scenario.finished(rt):
-            break
-    wall_s = time.perf_counter() - wall_start
+            next_report = PROGRESS_PERIOD_S
+        while rt.time < scenario.limit_s:
+            rt.step(scenario.tick)
+            if progress and rt.time >= next_report:
+                progress(rt.time, scenario.limit_s)
+                next_report += PROGRESS_PERIOD_S
+            if scenario.finished(rt):
+                break
+            if realtime:
+                time.sleep(max(0.0, wall_start + rt.time - time.perf_counter()))
+        wall_s = time.perf_counter() - wall_start
+        verdict, result = _judge(scenario, rt, wall_s, map_model)
+        files: list[Path] = []
+        if out_dir is not None:  # before the robots leave: plots read their logs
+            out_dir.mkdir(parents=True, exist_ok=True)
+            files.append(write_result(result, out_dir / "result.json"))
+            files.append(plot_trajectories(rt, map_model, out_dir / "trajectory.png",
+                                           title=_title(scenario, verdict), metrics=verdict.metrics))
+            files.append(plot_timeline(rt, out_dir / "timeline.png", title=_title(scenario, verdict),
+                                       metrics=verdict.metrics))
+            files.extend(scenario.write_files(rt, out_dir))
+    return RunOutcome(result, verdict, rt, files)
+
+
+def _runtime(scenario, map_model, config, processes: ProcessOptions | None, out_dir: Path | None, cleanup: ExitStack):
+    """The one-process runtime, or a world with its robots in processes (closed by `cleanup`)."""
+    if processes is None:
+        return SimRuntime(map_model, scenario.starts(), config)
+    from rescuemesh.runtime.process_world import ProcessRuntime, RobotProcesses, WorldHost, free_endpoint
+
+    listen = processes.listen or free_endpoint()
+    host = WorldHost(listen, processes.run_id)
+    cleanup.callback(host.close)
+    starts = scenario.starts()
+    if processes.spawn:
+        log_dir = out_dir / "processes" if out_dir is not None else Path(cleanup.enter_context(tempfile.TemporaryDirectory()))
+        team = RobotProcesses(listen, processes.run_id, log_dir, key_file=processes.key_file)
+        cleanup.callback(team.close)
+        for name in starts:
+            team.start(name)
+    rt = ProcessRuntime(map_model, starts, config, host, key_from_seed=scenario.options.team_key is None,
+                        join_timeout_s=processes.join_timeout_s)
+    cleanup.callback(rt.close)
+    return rt
+
+
+def _judge(scenario, rt, wall_s: float, map_model) -> tuple[Verdict, dict]:
+    """The verdict and result.json's content, while the robots (maybe processes) are still there."""
     verdict = scenario.evaluate(rt)
     if rt.time >= scenario.limit_s and not scenario.finished(rt):
         verdict.criteria.append((f"finished within the {scenario.limit_s:.0f} s limit", False))
         verdict.success = False
     result = build_result(scenario, rt, verdict, wall_s, map_model)
-    files: list[Path] = []
-    if out_dir is not None:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        files.append(write_result(result, out_dir / "result.json"))
-        files.append(plot_trajectories(rt, map_model, out_dir / "trajectory.png",
-                                       title=_title(scenario, verdict), metrics=verdict.metrics))
-        files.append(plot_timeline(rt, out_dir / "timeline.png", title=_title(scenario, verdict),
-                                   metrics=verdict.metrics))
-        files.extend(scenario.write_files(rt, out_dir))
-    return RunOutcome(result, verdict, rt, files)
+    if hasattr(rt, "processes"):
+        result["runtime"] = {"kind": "processes", "processes": rt.processes(),
+                             "process_events": [[t, robot, what] for t, robot, what in rt.process_log]}
+    else:
+        result["runtime"] = {"kind": "one process",
+                             "processes": [{"name": "world and robots", "pid": os.getpid(),
+                                            "cpu_s": round(time.process_time(), 3)}]}
+    return verdict, result
 
 
 def _title(scenario, verdict: Verdict) -> str:
