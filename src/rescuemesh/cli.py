@@ -128,6 +128,10 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--processes", action="store_true",
                      help="each robot in its own process, the world in this one, over Zenoh on loopback")
     run.add_argument("--realtime", action="store_true", help="pace the run to the wall clock (default: as fast as it goes)")
+    run.add_argument("--live", action="store_true",
+                     help="also serve the run's recording on a Foxglove WebSocket on 127.0.0.1 while it runs "
+                          "(with --realtime to watch it at its own pace; docs/recording.md)")
+    run.add_argument("--live-port", type=int, default=8765, metavar="PORT", help="port of --live (default 8765)")
     world = sub.add_parser("world", parents=[run], add_help=False,
                            help="run a scenario's world and wait for robot processes started by hand")
     world.add_argument("--listen", default="tcp/127.0.0.1:7447", metavar="tcp/HOST:PORT",
@@ -258,10 +262,16 @@ def _run(args) -> int:
               + (f" --run-id {args.run_id}" if args.run_id != "default" else ""), file=sys.stderr)
     elif args.processes:
         processes = ProcessOptions(key_file=args.key)
+    if args.live and not 0 < args.live_port < 65536:
+        raise UsageError(f"--live-port must be a port number from 1 to 65535, got {args.live_port}")
+    if args.live:
+        print(f"live: Foxglove WebSocket on ws://127.0.0.1:{args.live_port} while the run lasts "
+              f"(Foxglove: Open connection, Foxglove WebSocket)", flush=True)
     progress = None if args.quiet else _Progress(args.scenario)
     try:
         outcome = run_scenario(args.scenario, options, map_path=args.map, out_dir=out, progress=progress,
-                               processes=processes, realtime=args.realtime)
+                               processes=processes, realtime=args.realtime,
+                               live_port=args.live_port if args.live else None)
     except ControlError as error:
         if progress:
             progress.clear()

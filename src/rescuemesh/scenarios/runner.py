@@ -48,8 +48,11 @@ class RunOutcome:
 def run_scenario(name: str, options: ScenarioOptions, *, map_path: Path | None = None,
                  out_dir: Path | None = None,
                  progress: Callable[[float, float], None] | None = None,
-                 processes: ProcessOptions | None = None, realtime: bool = False) -> RunOutcome:
-    """Run scenario `name`. Raises ScenarioError / MapError / ValueError for bad options."""
+                 processes: ProcessOptions | None = None, realtime: bool = False,
+                 live_port: int | None = None) -> RunOutcome:
+    """Run scenario `name`. Raises ScenarioError / MapError / ValueError for bad options (a `live_port`
+    that cannot be served too). With `out_dir`, the run is recorded to `out_dir/run.mcap`; with
+    `live_port`, the same channels are served on ws://127.0.0.1:live_port during the run."""
     cls = get_scenario(name)
     map_model: MapModel = load_map(map_path or office_map_path())
     scenario = cls(options, map_model)
@@ -62,12 +65,15 @@ def run_scenario(name: str, options: ScenarioOptions, *, map_path: Path | None =
     wall_start = time.perf_counter()
     with ExitStack() as cleanup:
         rt = _runtime(scenario, map_model, config, processes, out_dir, cleanup)
+        recorder = _recorder(rt, map_model, out_dir, live_port, cleanup)
         next_report = 0.0
         if progress:
             progress(rt.time, scenario.limit_s)
             next_report = PROGRESS_PERIOD_S
         while rt.time < scenario.limit_s:
             rt.step(scenario.tick)
+            if recorder is not None:
+                recorder.tick()
             if progress and rt.time >= next_report:
                 progress(rt.time, scenario.limit_s)
                 next_report += PROGRESS_PERIOD_S
@@ -86,6 +92,7 @@ def run_scenario(name: str, options: ScenarioOptions, *, map_path: Path | None =
             files.append(plot_timeline(rt, out_dir / "timeline.png", title=_title(scenario, verdict),
                                        metrics=verdict.metrics))
             files.extend(scenario.write_files(rt, out_dir))
+            files.append(recorder.finish())
     return RunOutcome(result, verdict, rt, files)
 
 
@@ -109,6 +116,17 @@ def _runtime(scenario, map_model, config, processes: ProcessOptions | None, out_
                         join_timeout_s=processes.join_timeout_s)
     cleanup.callback(rt.close)
     return rt
+
+
+def _recorder(rt, map_model, out_dir: Path | None, live_port: int | None, cleanup: ExitStack):
+    """The run's recorder (run.mcap in `out_dir`, the live server), closed by `cleanup`; None for neither."""
+    if out_dir is None and live_port is None:
+        return None
+    from rescuemesh.report.recording import RunRecorder  # imports foxglove-sdk: only when recording
+
+    recorder = RunRecorder(rt, map_model, out_dir / "run.mcap" if out_dir is not None else None, live_port=live_port)
+    cleanup.callback(recorder.close)
+    return recorder
 
 
 def _judge(scenario, rt, wall_s: float, map_model) -> tuple[Verdict, dict]:
