@@ -1,0 +1,239 @@
+"""A Body over ROS 1 topics, so the same brain, navigation and protocol drive any ROS 1 robot or a
+Gazebo TurtleBot: nav_msgs/Odometry and sensor_msgs/LaserScan in, geometry_msgs/Twist out.
+
+Owns: Ros1Topics (the topic names, configurable), Ros1Body (the latest odometry, localised pose and
+scan, kept under a lock because rospy calls back on its own threads; set_velocity publishes a
+Twist), the conversions quaternion -> yaw and sensor_msgs/LaserScan -> rescuemesh.body.LaserScan,
+and init_node. Must not know: the brain, the protocol, the mesh, the loop that steps them (the
+runtime owns time: `now()` is ROS time since the body was made, the clock brain.step is given).
+rospy comes from ROS 1 (Debian: python3-rospy), not from PyPI; it is imported on first use.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from rescuemesh.body import Body, LaserScan
+from rescuemesh.geometry import Pose2D, quaternion_to_yaw
+
+#: TurtleBot 2 (Kobuki) limits and footprint, as the simulated robots (sim/mjcf.py).
+TURTLEBOT2_MAX_LINEAR_SPEED = 0.7  # m/s
+TURTLEBOT2_MAX_ANGULAR_SPEED = math.pi  # rad/s
+TURTLEBOT2_RADIUS = 0.177  # m
+
+#: How long the body waits at start for the first Odometry, in s.
+ODOMETRY_WAIT_S = 10.0
+
+ROS1_INSTALL_HINT = ("ROS 1's Python client is not on PyPI: install it with your ROS (Debian 12: "
+                     "apt-get install ros-core python3-rospy python3-genpy python3-nav-msgs python3-sensor-msgs "
+                     "python3-geometry-msgs ros-std-msgs ros-geometry-msgs) and run rescuemesh from a "
+                     "virtualenv made with --system-site-packages (docs/ros1.md)")
+
+
+class Ros1Unavailable(ImportError):
+    """rospy or the ROS message packages cannot be imported: ROS 1 is not installed or not visible."""
+
+
+class NoOdometryError(RuntimeError):
+    """No nav_msgs/Odometry has arrived on the odometry topic within the bound."""
+
+
+def import_rospy():
+    """rospy, or Ros1Unavailable naming what to install."""
+    try:
+        import rospy
+    except ImportError as exc:
+        raise Ros1Unavailable(f"cannot import rospy ({exc}). {ROS1_INSTALL_HINT}") from exc
+    return rospy
+
+
+def init_node(name: str) -> None:
+    """Make this process a ROS node called `name` (once; a later call does nothing). rospy's own
+    signal handlers are left out: the runtime decides how it stops."""
+    rospy = import_rospy()
+    if not rospy.core.is_initialized():
+        rospy.init_node(name, anonymous=False, disable_signals=True)
+
+
+@dataclass(frozen=True)
+class Ros1Topics:
+    """ROS 1 topic names of one robot; `{robot}` becomes the robot's name. The defaults are the
+    issue's (`/robot_2/odom`, `/robot_2/scan`, `/robot_2/cmd_vel` for robot_2). `pose`: a
+    geometry_msgs/PoseWithCovarianceStamped topic with the localised pose in the map frame (AMCL's
+    `amcl_pose`); None (the default) takes the odometry's pose as the map pose (the odom frame is
+    the map frame: right for Gazebo, drifting on a real base)."""
+
+    odom: str = "/{robot}/odom"
+    scan: str = "/{robot}/scan"
+    cmd_vel: str = "/{robot}/cmd_vel"
+    pose: str | None = None
+
+    def resolve(self, robot: str) -> "Ros1Topics":
+        """These names with `{robot}` replaced by `robot`."""
+        fill = (lambda name: None if name is None else name.replace("{robot}", robot))
+        return Ros1Topics(fill(self.odom), fill(self.scan), fill(self.cmd_vel), fill(self.pose))
+
+
+def quaternion_msg_to_yaw(q) -> float:
+    """Yaw in rad of a geometry_msgs/Quaternion (roll and pitch ignored)."""
+    return quaternion_to_yaw(q.x, q.y, q.z, q.w)
+
+
+def pose_msg_to_pose2d(pose) -> Pose2D:
+    """A geometry_msgs/Pose as a planar Pose2D (x, y in m, yaw in rad)."""
+    return Pose2D(float(pose.position.x), float(pose.position.y), quaternion_msg_to_yaw(pose.orientation))
+
+
+def laser_scan_from_msg(msg, origin: Pose2D, stamp: float) -> LaserScan:
+    """A sensor_msgs/LaserScan as rescuemesh.body.LaserScan taken from `origin` at `stamp` s.
+
+    REP-117: a beam with no return is +inf or beyond range_max, one too close is -inf or below
+    range_min; NaN is a bad reading. Everything without a valid return becomes inf (the brain
+    reads inf as "free to range_max"); readings below range_min stay, LaserScan.points_in_map drops them.
+    """
+    ranges = np.asarray(msg.ranges, dtype=float).copy()
+    range_max = float(msg.range_max)
+    ranges[np.isnan(ranges) | (ranges > range_max)] = np.inf
+    return LaserScan(stamp=stamp, origin=origin, angle_min=float(msg.angle_min),
+                     angle_increment=float(msg.angle_increment), range_min=float(msg.range_min),
+                     range_max=range_max, ranges=ranges)
+
+
+def compose(pose: Pose2D, offset: Pose2D) -> Pose2D:
+    """`offset` (in `pose`'s frame) expressed in the frame `pose` is in."""
+    c, s = math.cos(pose.yaw), math.sin(pose.yaw)
+    return Pose2D(pose.x + c * offset.x - s * offset.y, pose.y + s * offset.x + c * offset.y, pose.yaw + offset.yaw)
+
+
+class Ros1Body(Body):
+    """A ground robot reached through ROS 1 topics (the node must be initialised: `init_node`).
+
+    Reads the latest nav_msgs/Odometry (pose in the odom frame, twist in the base frame) and
+    sensor_msgs/LaserScan, and, with `topics.pose`, the localised pose; `set_velocity` clamps to
+    the limits and publishes a geometry_msgs/Twist. `laser_offset`: the laser's pose in the base
+    frame (no TF lookup: give the mount). Construction waits up to `odometry_wait_s` for the first
+    Odometry and raises NoOdometryError naming the topic when none comes.
+    """
+
+    def __init__(self, name: str, topics: Ros1Topics | None = None, *,
+                 max_linear_speed: float = TURTLEBOT2_MAX_LINEAR_SPEED,
+                 max_angular_speed: float = TURTLEBOT2_MAX_ANGULAR_SPEED, radius: float = TURTLEBOT2_RADIUS,
+                 laser_offset: Pose2D = Pose2D(0.0, 0.0, 0.0), odometry_wait_s: float = ODOMETRY_WAIT_S,
+                 time_origin: float | None = None) -> None:
+        rospy = import_rospy()
+        try:
+            from geometry_msgs.msg import PoseWithCovarianceStamped, Twist
+            from nav_msgs.msg import Odometry
+            from sensor_msgs.msg import LaserScan as ScanMsg
+        except ImportError as exc:
+            raise Ros1Unavailable(f"cannot import the ROS message packages ({exc}). {ROS1_INSTALL_HINT}") from exc
+        self._rospy, self._twist = rospy, Twist
+        self.name = name
+        self.topics = (topics or Ros1Topics()).resolve(name)
+        self.max_linear_speed, self.max_angular_speed, self.radius = max_linear_speed, max_angular_speed, radius
+        self.laser_offset = laser_offset
+        #: ROS time in s that is `now()` == 0 (the brain's clock starts near 0, as in simulation).
+        self.time_origin = rospy.get_time() if time_origin is None else time_origin
+        self._lock = threading.Lock()
+        self._odom: tuple[Pose2D, float, float] | None = None
+        self._odom_received_s: float | None = None  # ROS time of the latest Odometry's arrival
+        self._localised: Pose2D | None = None
+        self._scan: LaserScan | None = None
+        self._odometry_arrived = threading.Event()
+        self._cmd = rospy.Publisher(self.topics.cmd_vel, Twist, queue_size=1)
+        self._subscribers = [rospy.Subscriber(self.topics.odom, Odometry, self._on_odom, queue_size=1),
+                             rospy.Subscriber(self.topics.scan, ScanMsg, self._on_scan, queue_size=1)]
+        if self.topics.pose is not None:
+            self._subscribers.append(rospy.Subscriber(self.topics.pose, PoseWithCovarianceStamped, self._on_pose,
+                                                      queue_size=1))
+        self.wait_for_odometry(odometry_wait_s)
+
+    # ----- rospy's threads -----
+
+    def _stamp(self, header) -> float:
+        """A message's time in the brain's clock (s); receipt time when the driver left it 0."""
+        stamp = header.stamp.to_sec()
+        return (stamp if stamp > 0.0 else self._rospy.get_time()) - self.time_origin
+
+    def _on_odom(self, msg) -> None:
+        odom = (pose_msg_to_pose2d(msg.pose.pose), float(msg.twist.twist.linear.x), float(msg.twist.twist.angular.z))
+        with self._lock:
+            self._odom, self._odom_received_s = odom, self._rospy.get_time()
+        self._odometry_arrived.set()
+
+    def _on_pose(self, msg) -> None:
+        pose = pose_msg_to_pose2d(msg.pose.pose)
+        with self._lock:
+            self._localised = pose
+
+    def _on_scan(self, msg) -> None:
+        with self._lock:
+            base = self._localised if self._localised is not None else (self._odom[0] if self._odom else None)
+        if base is None:
+            return  # no pose to place it at yet
+        scan = laser_scan_from_msg(msg, compose(base, self.laser_offset), self._stamp(msg.header))
+        with self._lock:
+            self._scan = scan
+
+    # ----- the Body interface (the runtime's thread) -----
+
+    def wait_for_odometry(self, timeout_s: float) -> None:
+        """Block until an Odometry has arrived, or raise NoOdometryError after `timeout_s` s (wall time)."""
+        deadline = time.monotonic() + timeout_s
+        while not self._odometry_arrived.wait(0.1):
+            if self._rospy.is_shutdown() or time.monotonic() >= deadline:
+                raise NoOdometryError(
+                    f"{self.name}: no nav_msgs/Odometry on {self.topics.odom} within {timeout_s:g} s: is the robot "
+                    f"(or Gazebo) running, is ROS_MASTER_URI right, is the topic name right?")
+
+    def now(self) -> float:
+        """ROS time in s since `time_origin`: the clock to step this robot's brain with."""
+        return self._rospy.get_time() - self.time_origin
+
+    def odometry_age(self) -> float:
+        """Seconds since the latest Odometry arrived (ROS time): a runtime may halt on a stale one."""
+        with self._lock:
+            received = self._odom_received_s
+        return math.inf if received is None else self._rospy.get_time() - received
+
+    def _latest_odometry(self) -> tuple[Pose2D, float, float]:
+        with self._lock:
+            odom = self._odom
+        if odom is None:
+            raise NoOdometryError(f"{self.name}: no nav_msgs/Odometry on {self.topics.odom} yet")
+        return odom
+
+    def pose(self) -> Pose2D:
+        """The localised pose (the pose topic's latest) or, without one, the odometry's pose."""
+        with self._lock:
+            localised = self._localised
+        return localised if localised is not None else self._latest_odometry()[0]
+
+    def odometry(self) -> tuple[Pose2D, float, float]:
+        return self._latest_odometry()
+
+    def scan(self) -> LaserScan | None:
+        with self._lock:
+            return self._scan
+
+    def set_velocity(self, linear: float, angular: float) -> None:
+        if not (math.isfinite(linear) and math.isfinite(angular)):
+            raise ValueError(f"{self.name}: velocity command must be finite, got ({linear}, {angular})")
+        twist = self._twist()
+        twist.linear.x = min(max(float(linear), -self.max_linear_speed), self.max_linear_speed)
+        twist.angular.z = min(max(float(angular), -self.max_angular_speed), self.max_angular_speed)
+        self._cmd.publish(twist)
+
+    def close(self) -> None:
+        """Stop the wheels (a zero Twist) and leave the topics."""
+        try:
+            self.set_velocity(0.0, 0.0)
+        finally:
+            for subscriber in self._subscribers:
+                subscriber.unregister()
+            self._cmd.unregister()
