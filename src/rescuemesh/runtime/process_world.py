@@ -7,9 +7,9 @@ loop with robots that are stand-ins (runtime/remote.py), robots that die and joi
 Must not know: scenarios' scripts and criteria, plots, what a brain does inside.
 
 A tick at time t: the world steps to t, the medium delivers what is due (each frame heard is one call
-to its robot), every live robot steps its brain (one call each, all at once), the mission script runs
-(its reads and calls go to the robots), then every live robot is asked what it sends and how its
-wheels turn (one call each, all at once), and the medium takes the frames. Same seed, same run as
+to its robot), every live robot steps its brain and answers what it sends and how its wheels turn
+(one call each, all at once), the mission script runs (its reads and calls go to the robots), a robot
+the script called into is asked again what it sends, and the medium takes the frames. Same seed, same run as
 in one process. A robot whose process is gone keeps its body in the world with the wheels stopped and
 its radio silent; when a process for it joins again it is set up afresh with the next boot epoch.
 """
@@ -149,6 +149,8 @@ class ProcessRuntime(SimRuntime):
         self.process_log: list[tuple[float, str, str]] = []  # (time s, robot, what happened)
         self._lost_now: set[str] = set()
         self._sent_scan: dict[str, object] = {}
+        self._ticked: dict[str, tuple] = {}  # this tick's answers: (transmissions, timer, wheel command)
+        self._called: set[str] = set()  # robots the mission script called into since the tick
         self.time = 0.0
         super().__init__(map_model, starts, config)
 
@@ -209,6 +211,8 @@ class ProcessRuntime(SimRuntime):
     def call(self, robot: str, request: tuple):
         if robot not in self.live:
             raise RobotGone(f"{robot}'s process is gone")
+        if request[0] == "call":
+            self._called.add(robot)
         try:
             return self.host.client.call(robot, request)
         except ControlError as error:
@@ -236,13 +240,23 @@ class ProcessRuntime(SimRuntime):
         super().step(script)
 
     def _step_robots(self, now: float) -> None:
-        self._call_live({name: ("tick", now, self._body_state(name)) for name in sorted(self.live)})
+        self._ticked = self._call_live({name: ("tick", now, self._body_state(name)) for name in sorted(self.live)})
+        self._called.clear()
 
     def _collect_robots(self, now: float) -> None:
-        for name, (transmissions, timer, command) in self._call_live(
-                {name: ("flush", now) for name in sorted(self.live)}).items():
+        """What each robot sends and its wheel command: the tick's answer, and for a robot the mission
+        script called into since, what that added (one pop of the stack at `now` split in two: the
+        frames come out in the same order)."""
+        again = self._call_live({name: ("flush", now) for name in sorted(self._called & set(self._ticked))})
+        for name, (transmissions, timer, command) in self._ticked.items():
+            if name in again:
+                more, timer, command = again[name]
+                transmissions = transmissions + more
+            elif name in self._called:
+                continue  # lost since the tick
             self.stacks[name].prime(transmissions, timer)
             self.world.bodies[name].set_velocity(*command)
+        self._ticked = {}
         self.host.publish_clock(now)
 
     def _body_state(self, name: str) -> BodyState:

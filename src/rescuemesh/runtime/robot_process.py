@@ -7,8 +7,8 @@ process's life: waiting for the world, halting and leaving when the world is gon
 Must not know: MuJoCo (the world process owns physics, sensors and the radio medium), scenarios.
 
 A tick from the world carries the simulated time and this robot's body state (pose, odometry, the
-latest scan); the robot steps its brain and answers. A flush asks for what the stack has to send,
-its next timer and the wheel command. Every call into the network stack answers with the stack's
+latest scan); the robot steps its brain and answers with what the stack has to send, its next timer
+and the wheel command. A flush, only after the mission script called into this robot, asks again. Every call into the network stack answers with the stack's
 new transmissions and timer, so the world's radio medium runs exactly as it does in one process.
 """
 
@@ -128,9 +128,12 @@ class RobotWorker:
                                                 team_sealer(config), setup.start, epoch=setup.epoch)
         return self.stack.get_timer()
 
-    def _tick(self, now: float, state: BodyState) -> None:
+    def _tick(self, now: float, state: BodyState):
+        """Step the brain and answer as a flush would: the world needs no flush unless the mission
+        script calls into this robot before the tick ends (the frames answered here are the world's)."""
         self.body.update(state)
         self.brain.step(now)
+        return self._flush(now)
 
     def _flush(self, now: float):
         return self.stack.transmissions(now), self.stack.get_timer(), self.body.command
