@@ -40,8 +40,9 @@ from rescuemesh.runtime.sim_loop import SimRuntime, _position_of
 
 #: How long the world waits for its robots to join, in s.
 JOIN_TIMEOUT_S = 60.0
-#: How long robot processes get to leave after "bye" before they are terminated, then killed (s).
-LEAVE_TIMEOUT_S = 5.0
+#: How long robot processes get to leave (after "bye") before they are terminated, then killed, in s.
+#: A robot terminated halts and leaves too (SIGTERM): this only spares it the signal.
+LEAVE_TIMEOUT_S = 1.0
 
 
 def free_endpoint(host: str = "127.0.0.1") -> str:
