@@ -9,7 +9,7 @@ BIN    := $(VENV)/bin
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e '.[test,ble]'
+	$(BIN)/pip install --quiet -e '.[sim,ble,test]'
 	touch $@
 
 demo: $(VENV)/.installed
@@ -34,7 +34,7 @@ $(ROS_VENV)/.installed: pyproject.toml
 	$(ROS_PYTHON) -m venv --system-site-packages $(ROS_VENV)
 	echo '*' > $(ROS_VENV)/.gitignore
 	$(ROS_VENV)/bin/pip install --quiet --upgrade pip
-	$(ROS_VENV)/bin/pip install --quiet -e '.[test]'
+	$(ROS_VENV)/bin/pip install --quiet -e '.[ros1,test]'
 	touch $@
 
 test-ros: $(ROS_VENV)/.installed

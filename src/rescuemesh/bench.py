@@ -22,13 +22,15 @@ from rescuemesh.mesh.security import seal_open_rate
 from rescuemesh.protocol.codec import max_frame_bytes
 from rescuemesh.runtime.mesh_bench import chain_confirm_latency, delivery_ratio
 from rescuemesh.scenarios import ScenarioOptions
-from rescuemesh.scenarios.runner import run_scenario
+from rescuemesh.scenarios.runner import ProcessOptions, run_scenario
 
 #: Issue 8's goals: the three-robot follow at 100x real time on the office, 50x on a SLAM-like map,
 #: the 30-robot convoy at 10x.
 RTF_GOAL = 100.0
 SLAM_RTF_GOAL = 50.0
 CONVOY_RTF_GOAL = 10.0
+#: Issue 9's goal: the three-robot follow with each robot in its own process, at least 10x real time.
+PROCESSES_RTF_GOAL = 10.0
 #: Team sizes of the scaling series (the convoy scenario on the office).
 TEAM_SIZES = (3, 10, 30)
 CODEC_GOAL_FPS = 100_000
@@ -66,6 +68,7 @@ def run_bench(out: Path, *, seed: int = 0) -> int:
     widest = max(sizes, key=sizes.get)
     print(f"largest frame   : {figures['follow_max_frame_bytes']} bytes in this run; "
           f"{sizes[widest]} bytes for any message ({widest}; budget {MAX_CONTROL_FRAME_BYTES})")
+    figures["processes"] = _process_figures(seed, result)
     figures["slam_like"] = _slam_like_figures(seed)
     figures["teams"] = _team_figures(seed)
     figures["network"] = _network_figures(seed)
@@ -73,6 +76,30 @@ def run_bench(out: Path, *, seed: int = 0) -> int:
     out.write_text(json.dumps(figures, indent=2) + "\n")
     print(f"wrote {out}")
     return 0
+
+
+def _process_figures(seed: int, one_process: dict) -> dict:
+    """The same follow with each robot in its own process over Zenoh on loopback (lockstep), beside
+    the one-process figure; set-up (world built, robot processes started and joined) apart."""
+    result = run_scenario("follow", ScenarioOptions(seed=seed), processes=ProcessOptions()).result
+    figures = {}
+    for kind, r in (("one_process", one_process), ("processes", result)):
+        loop_s = r["wall_time_s"] - r["runtime"]["setup_s"]
+        figures[kind] = {"real_time_factor": r["real_time_factor"], "setup_s": r["runtime"]["setup_s"],
+                         "loop_real_time_factor": round(r["sim_time_s"] / loop_s, 2) if loop_s > 0 else None,
+                         "success": r["success"]}
+    figures["same_result"] = _comparable(result) == _comparable(one_process)
+    figures["goal_real_time_factor"] = PROCESSES_RTF_GOAL
+    p, o = figures["processes"], figures["one_process"]
+    print(f"processes       : follow with 4 processes over Zenoh {p['real_time_factor']}x real time "
+          f"(goal >= {PROCESSES_RTF_GOAL:g}x; {p['setup_s']:.2f} s set-up, loop alone {p['loop_real_time_factor']}x) "
+          f"beside {o['real_time_factor']}x in one process (loop alone {o['loop_real_time_factor']}x); "
+          f"same result: {'yes' if figures['same_result'] else 'NO'}")
+    return figures
+
+
+def _comparable(result: dict) -> dict:
+    return {k: v for k, v in result.items() if k not in ("wall_time_s", "real_time_factor", "runtime")}
 
 
 def _slam_like_figures(seed: int) -> dict:

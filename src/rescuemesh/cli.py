@@ -83,6 +83,30 @@ def _folder(text: str) -> Path:
     return Path(text)
 
 
+#: What each extra of pyproject.toml brings, as the modules a command imports.
+_EXTRA_MODULES = {"sim": ("mujoco", "numba", "matplotlib", "mcap", "foxglove"), "ble": ("bumble",)}
+#: Commands and the extra they need; a robot process (`rescuemesh robot`) needs none.
+_COMMAND_EXTRA = {"run": "sim", "world": "sim", "bench": "sim", "radio-map": "sim", "ble-check": "ble"}
+
+
+def _require_extra(command: str) -> None:
+    """A one-line error naming the extra to install when a command's packages are missing."""
+    extra = _COMMAND_EXTRA.get(command)
+    if extra is None:
+        return
+    import importlib
+
+    missing = []
+    for module in _EXTRA_MODULES[extra]:
+        try:
+            importlib.import_module(module)
+        except ImportError:
+            missing.append(module)
+    if missing:
+        raise UsageError(f"`rescuemesh {command}` needs the {extra} extra ({', '.join(missing)} not installed): "
+                         f"pip install 'rescuemesh[{extra}]'")
+
+
 def _check_seed(seed: int) -> None:
     if not 0 <= seed < 2**63:
         raise UsageError(f"--seed must be a whole number from 0 to 2**63 - 1, got {seed}")
@@ -190,6 +214,7 @@ def _main(argv: list[str] | None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         args = build_parser().parse_args(_join_negative_values(argv))
+        _require_extra(args.command)
         if args.command == "scenarios":
             return _list_scenarios()
         if args.command == "radio-map":

@@ -36,7 +36,8 @@ def _result(folder: Path) -> dict:
     return result
 
 
-@pytest.mark.parametrize("scenario, args", [("follow", []), ("stop", ["--loss", "0.2", "--seed", "3"])])
+@pytest.mark.parametrize("scenario, args", [("follow", []), ("stop", ["--loss", "0.2", "--seed", "3"]),
+                                            ("move-around", ["--loss", "0.2", "--seed", "2"])])
 def test_a_run_in_processes_is_the_same_run_as_in_one_process(tmp_path, scenario, args):
     one = subprocess.run(RESCUEMESH + ["run", scenario, "--quiet", "--out", str(tmp_path / "one")] + args,
                          capture_output=True, text=True, timeout=120)
@@ -246,17 +247,22 @@ def test_killing_the_world_halts_every_robot_and_each_leaves_in_bounded_time(tmp
     world = subprocess.Popen(RESCUEMESH + ["world", "follow", "--listen", listen, "--realtime", "--quiet",
                                            "--out", str(tmp_path)], stdout=subprocess.DEVNULL,
                              stderr=subprocess.DEVNULL, start_new_session=True)
-    robots = {name: subprocess.Popen(RESCUEMESH + ["robot", "--name", name, "--connect", listen],
-                                     stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                                     start_new_session=True)
-              for name in ("robot_1", "robot_2", "robot_3")}
+    (tmp_path / "processes").mkdir()
+    logs = {name: tmp_path / "processes" / f"{name}.log" for name in ("robot_1", "robot_2", "robot_3")}
+    robots = {}
+    for name, log in logs.items():
+        with open(log, "wb") as out:
+            robots[name] = subprocess.Popen(RESCUEMESH + ["robot", "--name", name, "--connect", listen],
+                                            stdout=out, stderr=subprocess.STDOUT, start_new_session=True)
     try:
-        time.sleep(4.0)  # joined and stepping (a realtime follow lasts ~25 s)
+        assert _wait(lambda: _joined(tmp_path, logs), 60), "robots never joined"
+        time.sleep(1.0)  # stepping (a realtime follow lasts ~25 s)
         assert world.poll() is None and all(r.poll() is None for r in robots.values())
         world.send_signal(signal.SIGKILL)
         started = time.monotonic()
         for name, robot in robots.items():
-            out, _ = robot.communicate(timeout=15)
+            robot.wait(timeout=15)
+            out = logs[name].read_text()
             assert robot.returncode == 0, out
             assert "world gone: wheels halted, leaving" in out
         print(f"every robot left {time.monotonic() - started:.2f} s after the world was killed")

@@ -55,6 +55,7 @@ MAX_GAP_M = CONVOY_FOLLOW_DISTANCE_M + 0.6
 
 class ConvoyScenario(Scenario):
     name = "convoy"
+    runs_as_processes = True
     summary = ("a chain of N robots (--robots, default 6): each follows the one ahead; robot_1 leads through the "
                "passage and a doorway into the hall")
     time_limit_s = 400.0

@@ -26,6 +26,7 @@ PEER_AFTER_S, OPERATOR_AFTER_S = 3.0, 1.0
 
 class PriorityScenario(Scenario):
     name = "priority"
+    runs_as_processes = True
     summary = "a peer's Goto is TEMPORARILY_REJECTED during a team lead's Follow; the operator's preempts it"
     time_limit_s = 90.0
     robots = ("robot_1", "robot_2", "robot_3", "robot_4")

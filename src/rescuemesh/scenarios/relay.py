@@ -31,6 +31,7 @@ MIN_HOPS = 2
 
 class RelayScenario(Scenario):
     name = "relay"
+    runs_as_processes = True
     summary = "robot_1 in the hall sends Follow to robot_3 in a far room; robot_2 relays; robot_3 comes and follows"
     time_limit_s = 180.0
     leader, relay, follower = "robot_1", "robot_2", "robot_3"

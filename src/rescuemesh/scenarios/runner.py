@@ -65,6 +65,7 @@ def run_scenario(name: str, options: ScenarioOptions, *, map_path: Path | None =
     wall_start = time.perf_counter()
     with ExitStack() as cleanup:
         rt = _runtime(scenario, map_model, config, processes, out_dir, cleanup)
+        setup_s = time.perf_counter() - wall_start  # world built, robots joined
         recorder = _recorder(rt, map_model, out_dir, live_port, cleanup)
         next_report = 0.0
         if progress:
@@ -83,6 +84,7 @@ def run_scenario(name: str, options: ScenarioOptions, *, map_path: Path | None =
                 time.sleep(max(0.0, wall_start + rt.time - time.perf_counter()))
         wall_s = time.perf_counter() - wall_start
         verdict, result = _judge(scenario, rt, wall_s, map_model)
+        result["runtime"]["setup_s"] = round(setup_s, 3)
         files: list[Path] = []
         if out_dir is not None:  # before the robots leave: plots read their logs
             out_dir.mkdir(parents=True, exist_ok=True)

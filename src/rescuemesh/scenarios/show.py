@@ -28,6 +28,7 @@ LATE_DATA_S = 10.0
 
 class ShowScanScenario(Scenario):
     name = "show-scan"
+    runs_as_processes = True
     summary = "robot_1 asks robot_2 for 3 scans of a spot around a corner; robot_2 moves to see it and sends them"
     time_limit_s = 120.0
     asker, sensor = "robot_1", "robot_2"
@@ -129,6 +130,7 @@ class ShowScanScenario(Scenario):
 
 class ShowCamScenario(ShowScanScenario):
     name = "show-cam"
+    runs_as_processes = False  # camera images are not carried between processes
     summary = "robot_1 asks robot_2 for 3 camera images of a spot around a corner; robot_2 moves, looks, sends them"
     kind = DataKind.IMAGE_JPEG
     folder = "images"

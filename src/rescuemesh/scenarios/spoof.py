@@ -147,6 +147,7 @@ class Intruder:
 
 class SpoofScenario(FollowScenario):
     name = "spoof"
+    runs_as_processes = False  # it taps the medium and opens frames with the robots' own nodes
     summary = "the follow scenario while an intruder forges Stops, Follows and Confirms and replays what it hears"
     time_limit_s = 150.0
 
