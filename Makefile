@@ -48,4 +48,4 @@ fuzz: $(VENV)/.installed
 	$(BIN)/python -m rescuemesh.fuzz --frames 1000000
 
 clean:
-	rm -rf $(VENV) out .pytest_cache
+	rm -rf $(VENV) $(ROS_VENV) out .pytest_cache
