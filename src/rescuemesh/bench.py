@@ -1,6 +1,7 @@
-"""`rescuemesh bench`: the figures we track: real-time factor of the follow scenario (on the office and on a
-SLAM-like map of about 1,000 wall boxes), codec rate, and
-the network: confirm latency over a chain of relays, delivery ratio on a lossy link.
+"""`rescuemesh bench`: the figures we track: real-time factor of the follow scenario (on the office, on a
+SLAM-like map of about 1,000 wall boxes, with each robot in its own process), codec rate, a command's
+round trip over Zenoh between two processes, and the network: confirm latency over a chain of relays,
+delivery ratio on a lossy link.
 
 Owns: timing (wall clock) and the bench JSON. Must not know: scenario internals. Prints figures;
 never fails on time: speed goals are read, not asserted.
@@ -31,6 +32,8 @@ SLAM_RTF_GOAL = 50.0
 CONVOY_RTF_GOAL = 10.0
 #: Issue 9's goal: the three-robot follow with each robot in its own process, at least 10x real time.
 PROCESSES_RTF_GOAL = 10.0
+#: ... and a command's round trip to its Confirm between two robot processes over Zenoh under 1 ms.
+ZENOH_RTT_GOAL_MS = 1.0
 #: Team sizes of the scaling series (the convoy scenario on the office).
 TEAM_SIZES = (3, 10, 30)
 CODEC_GOAL_FPS = 100_000
@@ -69,6 +72,7 @@ def run_bench(out: Path, *, seed: int = 0) -> int:
     print(f"largest frame   : {figures['follow_max_frame_bytes']} bytes in this run; "
           f"{sizes[widest]} bytes for any message ({widest}; budget {MAX_CONTROL_FRAME_BYTES})")
     figures["processes"] = _process_figures(seed, result)
+    figures["zenoh_link"] = _link_figures()
     figures["slam_like"] = _slam_like_figures(seed)
     figures["teams"] = _team_figures(seed)
     figures["network"] = _network_figures(seed)
@@ -96,6 +100,19 @@ def _process_figures(seed: int, one_process: dict) -> dict:
           f"beside {o['real_time_factor']}x in one process (loop alone {o['loop_real_time_factor']}x); "
           f"same result: {'yes' if figures['same_result'] else 'NO'}")
     return figures
+
+
+def _link_figures() -> dict:
+    """A command's round trip to its Confirm between two robot processes over Zenoh on loopback,
+    protocol, security and brains included, beside raw Zenoh ping-pong (runtime/link_bench.py)."""
+    from rescuemesh.runtime.link_bench import zenoh_confirm_rtt
+
+    figures = zenoh_confirm_rtt(1000)
+    protocol, raw = figures["protocol"], figures["raw"]
+    print(f"Zenoh link      : command -> Confirm between two processes p50 {protocol['p50_ms']:.2f} ms, "
+          f"p99 {protocol['p99_ms']:.2f} ms (goal p50 < {ZENOH_RTT_GOAL_MS:g} ms; {protocol['n']} round trips, "
+          f"{protocol['lost']} lost); raw Zenoh p50 {raw['p50_ms']:.2f} ms, p99 {raw['p99_ms']:.2f} ms")
+    return {**figures, "goal_p50_ms": ZENOH_RTT_GOAL_MS}
 
 
 def _comparable(result: dict) -> dict:

@@ -162,7 +162,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="where robots connect (default tcp/127.0.0.1:7447)")
     world.add_argument("--run-id", default="default", help="keeps several runs on one network apart")
     world.add_argument("--wait", type=float, default=120.0, metavar="S", help="how long to wait for the robots")
-    robot = sub.add_parser("robot", help="run one robot's software: brain, navigation, protocol, mesh")
+    robot = sub.add_parser("robot", help="run one robot's software: brain, navigation, protocol, mesh (for a "
+                                         "simulated world; with --link zenoh on a real network: docs/networks.md)")
     robot.add_argument("--name", required=True, help="robot name, robot_1 .. robot_254")
     robot.add_argument("--connect", required=True, metavar="tcp/HOST:PORT", help="the world's endpoint")
     robot.add_argument("--run-id", default="default", help="the world's run id (default: default)")
@@ -212,6 +213,8 @@ def _has_fd(stream) -> bool:
 
 def _main(argv: list[str] | None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] == ["robot"] and any(a == "--link" or a.startswith("--link=") for a in argv):
+        return _linked_robot(argv[1:])
     try:
         args = build_parser().parse_args(_join_negative_values(argv))
         _require_extra(args.command)
@@ -355,6 +358,27 @@ def _robot(args) -> int:
     except ControlError as error:
         print(f"rescuemesh: error: {error}", file=sys.stderr)
         return EXIT_FAILED
+
+
+def _linked_robot(argv: list[str]) -> int:
+    """`rescuemesh robot --link zenoh ...`: a robot on a real network, its frames over Zenoh with no
+    simulated channel (runtime/linked_robot.py, docs/networks.md). Ends the process itself: a Zenoh
+    session still closing must not meet a finalising interpreter."""
+    rest, link = [], None
+    for i, arg in enumerate(argv):
+        if arg.startswith("--link="):
+            link = arg.partition("=")[2]
+        elif arg == "--link":
+            link = argv[i + 1] if i + 1 < len(argv) else ""
+        elif i == 0 or argv[i - 1] != "--link":
+            rest.append(arg)
+    if link != "zenoh":
+        print(f"rescuemesh: error: --link takes zenoh (frames over Zenoh on a real network), got {link!r}",
+              file=sys.stderr)
+        return EXIT_USAGE
+    from rescuemesh.runtime.linked_robot import exit_process, main as linked_main
+
+    exit_process(linked_main(rest))
 
 
 class _Progress:

@@ -82,9 +82,11 @@ def test_a_bad_run_id_is_refused(bad):
 
 @pytest.mark.parametrize("argv, message", [
     (["robot", "--name", "robot_0", "--connect", "tcp/127.0.0.1:7447"], "robot"),
-    (["robot", "--name", "robot_2", "--connect", "127.0.0.1:7447"], "expected an endpoint like tcp/127.0.0.1:7447"),
+    (["robot", "--name", "robot_2", "--connect", "127.0.0.1:7447"], "expected tcp/IP:PORT"),
     (["robot", "--name", "robot_2", "--connect", "tcp/127.0.0.1:7447", "--wait", "-1"], "--wait"),
-    (["world", "follow", "--listen", "tcp/localhost"], "expected an endpoint"),
+    (["world", "follow", "--listen", "tcp/localhost"], "expected tcp/IP:PORT"),
+    (["robot", "--link", "udp", "--name", "robot_2"], "--link takes zenoh"),
+    (["robot", "--link", "zenoh", "--name", "robot_2"], "give at least one --listen or --connect"),
     (["world", "follow", "--run-id", "a/b"], "run id"),
 ])
 def test_bad_process_arguments_are_one_line_errors(argv, message):

@@ -26,6 +26,11 @@ from typing import Any
 
 import zenoh
 
+from rescuemesh.transport.zenoh_link import check_endpoint, session_config
+
+__all__ = ["CALL_TIMEOUT_S", "CallClient", "CallServer", "ControlError", "Keys", "Liveliness", "RemoteError",
+           "check_endpoint", "dumps", "loads", "open_session"]
+
 #: How long one call waits for its reply, in s: a robot that does not answer in this time is gone.
 CALL_TIMEOUT_S = 20.0
 
@@ -123,28 +128,15 @@ class Keys:
         return parts[-2]
 
 
-def check_endpoint(endpoint: str) -> str:
-    """`tcp/HOST:PORT` (Zenoh's locator syntax), or ValueError with the expected form."""
-    proto, _, rest = endpoint.partition("/")
-    host, _, port = rest.rpartition(":")
-    if proto not in ("tcp", "udp", "tls", "quic") or not host or not port.isdigit() or not 0 <= int(port) < 65536:
-        raise ValueError(f"expected an endpoint like tcp/127.0.0.1:7447, got {endpoint!r}")
-    return endpoint
-
-
 def open_session(*, listen: list[str] = (), connect: list[str] = ()) -> zenoh.Session:
-    """A Zenoh peer that listens and connects only where told, with multicast scouting off."""
-    import json
-
-    config = zenoh.Config()
-    config.insert_json5("mode", '"peer"')
-    config.insert_json5("scouting/multicast/enabled", "false")
-    config.insert_json5("listen/endpoints", json.dumps([check_endpoint(e) for e in listen]))
-    config.insert_json5("connect/endpoints", json.dumps([check_endpoint(e) for e in connect]))
+    """A Zenoh peer that listens and connects only where told, multicast scouting off: the same
+    session settings as the robots' frame link (transport/zenoh_link.py)."""
+    config = session_config(listen, connect)  # ValueError for a bad endpoint
     try:
         return zenoh.open(config)
     except zenoh.ZError as error:
-        raise ControlError(f"cannot open a Zenoh session (listen {list(listen)}, connect {list(connect)}): {error}") from None
+        raise ControlError(f"cannot open a Zenoh session (listen {list(listen)}, connect {list(connect)}): "
+                           f"{str(error).splitlines()[0]}") from None
 
 
 class CallServer:

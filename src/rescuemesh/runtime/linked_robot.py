@@ -82,6 +82,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--exit-when-done", action="store_true",
                    help="exit when the mission is over, or (no mission) when a commanded behaviour has ended")
     p.add_argument("--json-out", default=None, metavar="FILE", help="write a report of the run here")
+    p.add_argument("--body", choices=["kinematic", "ros1"], default="kinematic",
+                   help="kinematic: a simulated unicycle (default); ros1: a ROS 1 robot's /ROBOT/odom, /ROBOT/scan "
+                        "and /ROBOT/cmd_vel, with the paper's topics (docs/ros1.md)")
+    p.add_argument("--odometry-wait", type=float, default=10.0, metavar="S",
+                   help="--body ros1: how long to wait for the first odometry (default 10 s)")
     return p
 
 
@@ -94,6 +99,22 @@ def parse_pose(text: str, what: str) -> Pose2D:
     if len(values) not in (2, 3) or not all(math.isfinite(v) for v in values):
         raise UsageError(f"{what} takes X,Y[,YAW] in m and rad, got {text!r}")
     return Pose2D(*values)
+
+
+def build_ros1_robot(options: dict):
+    """A ROS 1 robot's body (its odometry, scan and cmd_vel topics), brain, stack and the paper's
+    topics: (body, brain, stack, paper). Raises Ros1Unavailable or NoOdometryError (one line each)."""
+    from rescuemesh.nav import Costmap
+    from rescuemesh.runtime.ros1_body import Ros1Body, init_node
+    from rescuemesh.runtime.ros1_paper import Ros1Paper
+
+    name = options["name"]
+    init_node(f"rescuemesh_{name}")
+    body = Ros1Body(name, odometry_wait_s=options["odometry_wait"])
+    grid = options["grid"] if options["grid"] is not None else empty_grid(size_m=EMPTY_MAP_SIZE_M)
+    brain, stack = assemble_robot(name, body, Costmap(grid), options["config"], team_sealer(options["config"]),
+                                  body.pose())
+    return body, brain, stack, Ros1Paper(brain)
 
 
 def build_robot(name: str, start: Pose2D, config: SimConfig, clock: Callable[[], float],
@@ -224,8 +245,17 @@ def main(argv: Sequence[str] | None = None, *, out: TextIO | None = None, err: T
         return 2
     import zenoh
 
-    clock = monotonic_from_zero()
-    body, brain, stack = build_robot(options["name"], options["start"], options["config"], clock, options["grid"])
+    paper = None
+    if options["body"] == "ros1":
+        try:
+            body, brain, stack, paper = build_ros1_robot(options)
+        except (ImportError, RuntimeError) as exc:  # Ros1Unavailable, NoOdometryError: one line
+            print(f"rescuemesh robot: error: {str(exc).splitlines()[0]}", file=err)
+            return 2
+        clock = body.now
+    else:
+        clock = monotonic_from_zero()
+        body, brain, stack = build_robot(options["name"], options["start"], options["config"], clock, options["grid"])
     try:
         link = ZenohLink.open(options["team"], robot_address(options["name"]),
                               listen=options["listen"], connect=options["connect"])
@@ -237,6 +267,8 @@ def main(argv: Sequence[str] | None = None, *, out: TextIO | None = None, err: T
     trajectory: list[list[float]] = []
 
     def on_step(loop: RealtimeLoop, now: float) -> None:
+        if paper is not None:
+            paper.step(now)  # requests from ROS nodes, on this thread (the brain is not thread-safe)
         if mission is not None:
             mission.on_step(loop, now)
         if not trajectory or now - trajectory[-1][0] >= TRAJECTORY_PERIOD_S:
@@ -274,6 +306,8 @@ def _options(args: argparse.Namespace) -> dict:
     check_team(args.team)
     if args.duration is not None and not (args.duration > 0 and math.isfinite(args.duration)):
         raise UsageError(f"--duration must be a positive number of s, got {args.duration}")
+    if not (0 < args.odometry_wait < 3600):
+        raise UsageError(f"--odometry-wait must be in (0, 3600) s, got {args.odometry_wait}")
     if not (0 <= args.linger < 3600):
         raise UsageError(f"--linger must be in [0, 3600) s, got {args.linger}")
     if not (0.01 <= args.ack_timeout <= 10):
@@ -307,7 +341,8 @@ def _options(args: argparse.Namespace) -> dict:
                        relay=not args.no_relay)
     return {"name": args.name, "listen": args.listen, "connect": args.connect, "team": args.team, "config": config,
             "start": start, "goal": goal, "follower": follower, "duration": args.duration, "grid": grid,
-            "exit_when_done": args.exit_when_done, "json_out": args.json_out, "linger": args.linger}
+            "exit_when_done": args.exit_when_done, "json_out": args.json_out, "linger": args.linger,
+            "body": args.body, "odometry_wait": args.odometry_wait}
 
 
 def _on_signals(stop: Callable[[], None]) -> Callable[[], None]:
@@ -323,6 +358,11 @@ def _on_signals(stop: Callable[[], None]) -> Callable[[], None]:
     return restore
 
 
+def _length(trajectory: list[list[float]]) -> float:
+    """Path length in m of [time, x, y, yaw] samples (a ROS body does not count its distance)."""
+    return sum(math.hypot(b[1] - a[1], b[2] - a[2]) for a, b in zip(trajectory, trajectory[1:]))
+
+
 def _report(options, brain, stack, body, link, loop, mission, trajectory) -> dict:
     pose = body.pose()
     return {
@@ -330,7 +370,7 @@ def _report(options, brain, stack, body, link, loop, mission, trajectory) -> dic
         "secure": options["config"].secure, "ran_s": round(loop.stats.ran_s, 3),
         "start": [options["start"].x, options["start"].y, options["start"].yaw],
         "final_pose": [round(pose.x, 3), round(pose.y, 3), round(pose.yaw, 3)],
-        "path_length_m": round(body.distance_m, 3),
+        "path_length_m": round(body.distance_m if hasattr(body, "distance_m") else _length(trajectory), 3),
         "mission": mission.report() if mission is not None else None,
         "behaviours": [{"name": f.name, "started_s": _r(f.started_s), "ended_s": _r(f.ended_s),
                         "result": f.result.name, "reason": f.reason} for f in brain.finished],
