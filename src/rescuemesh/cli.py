@@ -261,7 +261,6 @@ def _run(args) -> int:
     from rescuemesh.runtime import RadioKind
     from rescuemesh.scenarios import ScenarioError, ScenarioOptions
     from rescuemesh.runtime.control import ControlError
-    from rescuemesh.scenarios.runner import ProcessOptions, run_scenario
 
     if not (0.0 <= args.loss < 1.0):
         raise UsageError(f"--loss must be in [0, 1), got {args.loss}")
@@ -281,6 +280,8 @@ def _run(args) -> int:
     out = _writable_folder(args.out or Path("out") / args.scenario)
     processes = None
     if args.command == "world":
+        from rescuemesh.runtime.spawn import ProcessOptions
+
         if not 0 < args.wait < math.inf:
             raise UsageError(f"--wait must be a finite number of seconds > 0, got {args.wait}")
         processes = ProcessOptions(listen=_endpoint(args.listen), run_id=_run_id(args.run_id), spawn=False,
@@ -288,13 +289,15 @@ def _run(args) -> int:
         print(f"world {args.scenario}: waiting for robots at {args.listen} (run {args.run_id!r}); start each with\n"
               f"  rescuemesh robot --name robot_N --connect {args.listen}"
               + (f" --run-id {args.run_id}" if args.run_id != "default" else ""), file=sys.stderr)
-    elif args.processes:
-        processes = ProcessOptions(key_file=args.key)
     if args.live and not 0 < args.live_port < 65536:
         raise UsageError(f"--live-port must be a port number from 1 to 65535, got {args.live_port}")
     if args.live:
         print(f"live: Foxglove WebSocket on ws://127.0.0.1:{args.live_port} while the run lasts "
               f"(Foxglove: Open connection, Foxglove WebSocket)", flush=True)
+    if args.processes and args.command == "run":
+        processes = _early_team(args, options, out)  # before the world's imports: robots start meanwhile
+    from rescuemesh.scenarios.runner import run_scenario
+
     progress = None if args.quiet else _Progress(args.scenario)
     try:
         outcome = run_scenario(args.scenario, options, map_path=args.map, out_dir=out, progress=progress,
@@ -309,10 +312,32 @@ def _run(args) -> int:
         if progress:
             progress.clear()
         raise UsageError(str(error)) from None
+    finally:
+        if processes is not None and processes.team is not None:
+            processes.team.close()
     if progress:
         progress.clear()
     _summary(outcome)
     return EXIT_OK if outcome.verdict.success else EXIT_FAILED
+
+
+def _early_team(args, options, out: Path):
+    """`run --processes`: the team's robot processes, started now at a free endpoint, before this
+    process imports MuJoCo and builds the world (a robot takes about as long to import and connect)."""
+    from rescuemesh.maps import MapError, load_map, office_map_path
+    from rescuemesh.runtime.spawn import ProcessOptions, RobotProcesses, free_endpoint
+    from rescuemesh.scenarios import ScenarioError, get_scenario
+
+    try:
+        cls = get_scenario(args.scenario)
+        names = list(cls(options, load_map(args.map or office_map_path())).starts()) if cls.runs_as_processes else []
+    except (ScenarioError, MapError, ValueError) as error:
+        raise UsageError(str(error)) from None
+    listen = free_endpoint()
+    team = RobotProcesses(listen, "default", out / "processes", key_file=args.key)
+    for name in names:
+        team.start(name)
+    return ProcessOptions(listen=listen, key_file=args.key, team=team)
 
 
 def _endpoint(text: str) -> str:

@@ -18,7 +18,8 @@ import pytest
 from rescuemesh.maps import load_map, office_map_path
 from rescuemesh.protocol import ResultCode
 from rescuemesh.runtime.control import ControlError, Keys, dumps, loads
-from rescuemesh.runtime.process_world import ProcessRuntime, RobotProcesses, WorldHost, free_endpoint
+from rescuemesh.runtime.process_world import ProcessRuntime, WorldHost
+from rescuemesh.runtime.spawn import RobotProcesses, free_endpoint
 from rescuemesh.runtime.remote import RobotGone
 from rescuemesh.scenarios import ScenarioOptions
 from rescuemesh.scenarios.base import CommandRequest

@@ -2,7 +2,7 @@
 process, stepped in lockstep over Zenoh (runtime/control.py).
 
 Owns: the world's Zenoh host (its endpoint, liveliness token, the robots' tokens, the published
-clock), starting and ending robot processes for `run --processes`, and ProcessRuntime: SimRuntime's
+clock) and ProcessRuntime: SimRuntime's
 loop with robots that are stand-ins (runtime/remote.py), robots that die and join again.
 Must not know: scenarios' scripts and criteria, plots, what a brain does inside.
 
@@ -16,18 +16,12 @@ its radio silent; when a process for it joins again it is set up afresh with the
 
 from __future__ import annotations
 
-import ctypes
 import os
-import signal
-import socket
 import struct
-import subprocess
-import sys
 import threading
 import time
 from collections import Counter
 from dataclasses import replace
-from pathlib import Path
 
 from rescuemesh.geometry import Pose2D
 from rescuemesh.maps import MapModel
@@ -40,16 +34,6 @@ from rescuemesh.runtime.sim_loop import SimRuntime, _position_of
 
 #: How long the world waits for its robots to join, in s.
 JOIN_TIMEOUT_S = 60.0
-#: How long robot processes get to leave (after "bye") before they are terminated, then killed, in s.
-#: A robot terminated halts and leaves too (SIGTERM): this only spares it the signal.
-LEAVE_TIMEOUT_S = 1.0
-
-
-def free_endpoint(host: str = "127.0.0.1") -> str:
-    """A TCP endpoint on `host` with a port no one listens on now."""
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
-        probe.bind((host, 0))
-        return f"tcp/{host}:{probe.getsockname()[1]}"
 
 
 class WorldHost:
@@ -92,49 +76,6 @@ class WorldHost:
             part.undeclare()
         self.robots.close()
         self.session.close()
-
-
-def _die_with_parent() -> None:  # runs in the child before exec: SIGTERM when the parent dies
-    libc = ctypes.CDLL(None, use_errno=True)
-    libc.prctl(1, signal.SIGTERM)  # PR_SET_PDEATHSIG
-
-
-class RobotProcesses:
-    """Robot processes started for `run --processes`: `rescuemesh robot` per robot, each told to die
-    with its parent, each writing to `<log_dir>/<name>.log`. `close()` leaves no process behind."""
-
-    def __init__(self, connect: str, run: str, log_dir: Path, *, key_file: Path | None = None) -> None:
-        self.connect, self.run, self.log_dir, self.key_file = connect, run, Path(log_dir), key_file
-        self.log_dir.mkdir(parents=True, exist_ok=True)
-        self.procs: dict[str, subprocess.Popen] = {}
-
-    def start(self, name: str) -> subprocess.Popen:
-        command = [sys.executable, "-m", "rescuemesh", "robot", "--name", name, "--connect", self.connect,
-                   "--run-id", self.run]
-        if self.key_file is not None:
-            command += ["--key", str(self.key_file)]
-        with open(self.log_dir / f"{name}.log", "ab" if name in self.procs else "wb") as log:
-            proc = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
-                                    preexec_fn=_die_with_parent)
-        self.procs[name] = proc
-        return proc
-
-    def exited(self) -> dict[str, int]:
-        return {name: proc.returncode for name, proc in self.procs.items() if proc.poll() is not None}
-
-    def close(self, timeout_s: float = LEAVE_TIMEOUT_S) -> None:
-        deadline = time.monotonic() + timeout_s
-        for proc in self.procs.values():
-            try:
-                proc.wait(max(0.0, deadline - time.monotonic()))
-            except subprocess.TimeoutExpired:
-                proc.terminate()
-        for proc in self.procs.values():
-            try:
-                proc.wait(2.0)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait(2.0)
 
 
 class ProcessRuntime(SimRuntime):

@@ -9,7 +9,7 @@ from __future__ import annotations
 import abc
 import math
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
@@ -18,7 +18,10 @@ from rescuemesh.geometry import Pose2D
 from rescuemesh.maps import MapModel
 from rescuemesh.protocol import ResultCode
 from rescuemesh.robot import RobotBrain, robot_address
-from rescuemesh.runtime import RadioKind, SimConfig, SimRuntime, TrajectorySample
+from rescuemesh.runtime import RadioKind, SimConfig
+
+if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJoCo
+    from rescuemesh.runtime.sim_loop import SimRuntime, TrajectorySample
 
 ROBOTS = ("robot_1", "robot_2", "robot_3")
 #: Name of the packaged office map (rescuemesh/data/office.yaml): scenarios have default poses for it.

@@ -17,16 +17,20 @@ chain instead of a room.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import math
 from dataclasses import replace
 from functools import cached_property
 
 from rescuemesh.geometry import Pose2D
 from rescuemesh.protocol import ResultCode
-from rescuemesh.runtime import SimRuntime
 from rescuemesh.scenarios.base import (CommandRequest, Scenario, ScenarioError, Verdict, last_result, mean_distance,
                                        no_collisions, settled, why_not)
 from rescuemesh.scenarios.team import MAX_TEAM, PlacementError, place_behind, team_names
+
+if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJoCo
+    from rescuemesh.runtime.sim_loop import SimRuntime
 
 #: Team size without --robots.
 DEFAULT_TEAM = 6

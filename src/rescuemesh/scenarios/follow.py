@@ -6,11 +6,15 @@ Must not know: how the world is simulated or how results are written.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from rescuemesh.geometry import Pose2D
 from rescuemesh.protocol import ResultCode
-from rescuemesh.runtime import SimRuntime
 from rescuemesh.scenarios.base import (CommandRequest, Scenario, ScenarioError, Verdict, last_result, mean_distance,
                                        no_collisions, settled, why_not)
+
+if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJoCo
+    from rescuemesh.runtime.sim_loop import SimRuntime
 
 #: On a map with no named regions, follow succeeds when the follower ends this close to the leader (m).
 FOLLOWER_END_DISTANCE_M = 2.0

@@ -5,12 +5,16 @@ back to its base. Owns the two missions, their criteria and metrics. Must not kn
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import math
 
 from rescuemesh.geometry import Pose2D
 from rescuemesh.protocol import ResultCode
-from rescuemesh.runtime import SimRuntime
 from rescuemesh.scenarios.base import CommandRequest, Scenario, ScenarioError, Verdict, no_collisions
+
+if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJoCo
+    from rescuemesh.runtime.sim_loop import SimRuntime
 
 #: Where robot_2 is sent on the office: room_south, east of its table, facing north.
 OFFICE_GOTO = Pose2D(12.6, 2.4, math.pi / 2)

@@ -7,13 +7,18 @@ Owns: the mission, its criteria and metrics. Must not know how the drone flies (
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from dataclasses import replace
 
 from rescuemesh.body import FlightPhase, RobotKind
 from rescuemesh.geometry import Pose2D
 from rescuemesh.protocol import Capability, ResultCode
-from rescuemesh.runtime import SimConfig, SimRuntime
+from rescuemesh.runtime import SimConfig
 from rescuemesh.scenarios.base import CommandRequest, Scenario, Verdict, no_collisions, settled
+
+if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJoCo
+    from rescuemesh.runtime.sim_loop import SimRuntime
 
 CARRIER, DRONE = "robot_2", "robot_4"
 #: The drone waits on the floor of the hall, 2.3 m from robot_2.

@@ -6,14 +6,18 @@ Must not know: how the world is simulated or how results are written.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import math
 
 import numpy as np
 
 from rescuemesh.protocol import ResultCode
 from rescuemesh.robot.behaviours import MoveAroundBehaviour
-from rescuemesh.runtime import SimRuntime
 from rescuemesh.scenarios.base import CommandRequest, Scenario, ScenarioError, Verdict, no_collisions
+
+if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJoCo
+    from rescuemesh.runtime.sim_loop import SimRuntime
 
 MAX_RMS_ERROR_M = 0.15
 MIN_ANGLE_DEG = 330.0

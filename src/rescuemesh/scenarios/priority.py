@@ -6,14 +6,19 @@ and robot_1 gets CANCELLED with the reason. Owns the script and its criteria; no
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from dataclasses import replace
 
 from rescuemesh.geometry import Pose2D
 from rescuemesh.protocol import Reason, ResultCode
 from rescuemesh.robot import BrainConfig
 from rescuemesh.robot.policy import Rank
-from rescuemesh.runtime import SimConfig, SimRuntime
+from rescuemesh.runtime import SimConfig
 from rescuemesh.scenarios.base import CommandRequest, Scenario, Verdict, no_collisions
+
+if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJoCo
+    from rescuemesh.runtime.sim_loop import SimRuntime
 
 RANKS = {1: Rank.TEAM_LEAD, 2: Rank.PEER, 3: Rank.PEER, 4: Rank.OPERATOR}
 #: The operator station stands in the hall's south-west corner (a robot that does not move).

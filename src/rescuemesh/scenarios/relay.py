@@ -8,10 +8,14 @@ mesh, not a lucky direct link, carries the command.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from rescuemesh.geometry import Pose2D
 from rescuemesh.protocol import ResultCode
-from rescuemesh.runtime import SimRuntime
 from rescuemesh.scenarios.base import CommandRequest, Scenario, ScenarioError, Verdict, no_collisions, settled
+
+if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJoCo
+    from rescuemesh.runtime.sim_loop import SimRuntime
 
 #: Office placements: robot_1 in the north-west of the hall and robot_3 in the far corner of
 #: room_northeast hear each other with probability < 0.1 % (17.6 m, two walls); robot_2 in

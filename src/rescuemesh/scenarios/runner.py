@@ -16,25 +16,11 @@ from pathlib import Path
 from rescuemesh.maps import MapModel, load_map, office_map_path
 from rescuemesh.report import build_result, plot_timeline, plot_trajectories, write_result
 from rescuemesh.runtime import SimRuntime
+from rescuemesh.runtime.spawn import ProcessOptions
 from rescuemesh.scenarios import ScenarioError, ScenarioOptions, Verdict, get_scenario
 
 #: How often the progress callback is called, in simulated seconds.
 PROGRESS_PERIOD_S = 1.0
-
-
-@dataclass(frozen=True)
-class ProcessOptions:
-    """Run the robots as separate processes (`--processes`, `rescuemesh world`).
-
-    `listen`: the world's Zenoh endpoint (None: a free port on 127.0.0.1). `spawn`: start the robot
-    processes here (False: wait for robots started by hand). `key_file`: the team key file the robot
-    processes read themselves (the key never crosses the control plane)."""
-
-    listen: str | None = None
-    run_id: str = "default"
-    spawn: bool = True
-    key_file: Path | None = None
-    join_timeout_s: float = 60.0
 
 
 @dataclass
@@ -102,18 +88,23 @@ def _runtime(scenario, map_model, config, processes: ProcessOptions | None, out_
     """The one-process runtime, or a world with its robots in processes (closed by `cleanup`)."""
     if processes is None:
         return SimRuntime(map_model, scenario.starts(), config)
-    from rescuemesh.runtime.process_world import ProcessRuntime, RobotProcesses, WorldHost, free_endpoint
+    from rescuemesh.runtime.process_world import ProcessRuntime, WorldHost
+    from rescuemesh.runtime.spawn import RobotProcesses, free_endpoint
 
     listen = processes.listen or free_endpoint()
     host = WorldHost(listen, processes.run_id)
     cleanup.callback(host.close)
     starts = scenario.starts()
     if processes.spawn:
-        log_dir = out_dir / "processes" if out_dir is not None else Path(cleanup.enter_context(tempfile.TemporaryDirectory()))
-        team = RobotProcesses(listen, processes.run_id, log_dir, key_file=processes.key_file)
+        team = processes.team
+        if team is None:
+            log_dir = out_dir / "processes" if out_dir is not None else \
+                Path(cleanup.enter_context(tempfile.TemporaryDirectory()))
+            team = RobotProcesses(listen, processes.run_id, log_dir, key_file=processes.key_file)
         cleanup.callback(team.close)
         for name in starts:
-            team.start(name)
+            if name not in team.procs:
+                team.start(name)
     rt = ProcessRuntime(map_model, starts, config, host, key_from_seed=scenario.options.team_key is None,
                         join_timeout_s=processes.join_timeout_s)
     cleanup.callback(rt.close)

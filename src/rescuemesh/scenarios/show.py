@@ -7,14 +7,17 @@ Owns: the two missions, criteria, metrics and the saved captures. Must not know 
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from pathlib import Path
 
 from rescuemesh.geometry import Pose2D
 from rescuemesh.protocol import DataKind, Pose, ResultCode, ShowCam, ShowScan
-from rescuemesh.report.sensors import draw_scan_png
 from rescuemesh.robot.sensor_codec import SensorDecodeError, decode_image, decode_scan, image_is_informative
-from rescuemesh.runtime import SimRuntime
 from rescuemesh.scenarios.base import CommandRequest, Scenario, ScenarioError, Verdict, no_collisions
+
+if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJoCo
+    from rescuemesh.runtime.sim_loop import SimRuntime
 
 #: In room_north, out of robot_2's sight from its start in the hall (the hall's east wall is between).
 OFFICE_TARGET = Pose2D(11.3, 7.6, 0.0)
@@ -123,6 +126,8 @@ class ShowScanScenario(Scenario):
                 scan = decode_scan(item[4])
             except SensorDecodeError:
                 continue
+            from rescuemesh.report.sensors import draw_scan_png  # matplotlib: only to write files
+
             paths.append(draw_scan_png(scan, self.map, folder / f"scan_{k}.png",
                                        title=f"scan {k} from robot_2, received at {item[0]:.2f} s ({len(item[4])} B)"))
         return paths

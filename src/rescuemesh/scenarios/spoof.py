@@ -8,6 +8,8 @@ how frames are sealed or checked (it counts what the robots accepted). `--insecu
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import heapq
 import itertools
 from collections import Counter
@@ -30,9 +32,11 @@ from rescuemesh.protocol import (
     Stop,
     encode_frame,
 )
-from rescuemesh.runtime import SimRuntime
 from rescuemesh.scenarios.base import Verdict
 from rescuemesh.scenarios.follow import FollowScenario
+
+if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJoCo
+    from rescuemesh.runtime.sim_loop import SimRuntime
 
 #: The intruder's radio address on the simulated medium (not a robot; its frames claim others').
 INTRUDER_ADDRESS = 200

@@ -6,10 +6,14 @@ Must not know: how the world is simulated or how results are written.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from rescuemesh.protocol import ResultCode
-from rescuemesh.runtime import SimRuntime
 from rescuemesh.scenarios.base import CommandRequest, Verdict, no_collisions
 from rescuemesh.scenarios.follow import FollowScenario
+
+if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJoCo
+    from rescuemesh.runtime.sim_loop import SimRuntime
 
 #: Halted: odometry speed below this, in m/s.
 HALTED_SPEED = 0.02
