@@ -123,7 +123,10 @@ def _link_figures() -> dict:
 
 
 def _comparable(result: dict) -> dict:
-    return {k: v for k, v in result.items() if k not in ("wall_time_s", "real_time_factor", "runtime")}
+    """A result without its wall-clock and process fields, events in time order as result.json has them."""
+    kept = {k: v for k, v in result.items() if k not in ("wall_time_s", "real_time_factor", "runtime")}
+    kept["events"] = sorted(([*e] for e in kept["events"]), key=lambda e: e[0])
+    return kept
 
 
 def _slam_like_figures(seed: int) -> dict:
