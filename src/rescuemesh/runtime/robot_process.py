@@ -14,14 +14,19 @@ new transmissions and timer, so the world's radio medium runs exactly as it does
 
 from __future__ import annotations
 
+import dataclasses
+import enum
 import math
 import os
 import queue
 import signal
 import sys
 import time
+from collections import deque
 from dataclasses import dataclass, replace
 from typing import Any
+
+import numpy as np
 
 from rescuemesh.body import Body, LaserScan, NoRendererError, RobotKind
 from rescuemesh.geometry import Pose2D
@@ -29,7 +34,7 @@ from rescuemesh.maps import MapModel
 from rescuemesh.nav import Costmap
 from rescuemesh.runtime.assembly import assemble_robot, team_sealer
 from rescuemesh.runtime.config import SimConfig
-from rescuemesh.runtime.control import CallServer, ControlError, Keys, Liveliness, dumps, loads, open_session
+from rescuemesh.runtime.control import CallServer, ControlError, Keys, Liveliness, open_session
 
 #: A robot that hears nothing from its world this long (s) halts and leaves.
 IDLE_TIMEOUT_S = 60.0
@@ -156,16 +161,12 @@ class RobotWorker:
         return value
 
     def _get(self, path: tuple[str, ...]):
-        """("callable",), ("value", v) for data, ("ref",) for an object that is not data (it does not
-        pickle, or the world would refuse to decode it: bound methods, keys, sockets)."""
+        """("callable",), ("value", v) for data (is_data), ("ref",) for any other object: a behaviour
+        with its navigation and costmap stays here, and the world reads what it needs of it."""
         value = self._resolve(path)
         if callable(value):
             return ("callable",)
-        try:
-            loads(dumps(value))
-        except Exception:
-            return ("ref",)
-        return ("value", value)
+        return ("value", value) if is_data(value) else ("ref",)
 
     def _call(self, path: tuple[str, ...], args: tuple, kwargs: dict):
         return self._resolve(path)(*args, **kwargs)
@@ -177,6 +178,30 @@ class RobotWorker:
     def _bye(self) -> None:
         self.halt()
         self.done = True
+
+
+#: Values that are data by themselves.
+_SCALARS = (type(None), bool, int, float, complex, str, bytes, enum.Enum, np.generic)
+#: Arrays up to this many elements count as data (a scan, a path); larger ones stay in the robot.
+_MAX_ARRAY_ELEMENTS = 1 << 16
+
+
+def is_data(value, depth: int = 0) -> bool:
+    """Whether `value` is plain data worth copying to the world: scalars, enums, small arrays, and
+    lists, tuples, sets, dicts and dataclasses of data, nested at most 8 deep."""
+    if isinstance(value, _SCALARS):
+        return True
+    if depth >= 8:
+        return False
+    if isinstance(value, np.ndarray):
+        return value.size <= _MAX_ARRAY_ELEMENTS and value.dtype != object
+    if isinstance(value, (list, tuple, set, frozenset, deque)):
+        return all(is_data(item, depth + 1) for item in value)
+    if isinstance(value, dict):
+        return all(is_data(k, depth + 1) and is_data(v, depth + 1) for k, v in value.items())
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return all(is_data(getattr(value, f.name), depth + 1) for f in dataclasses.fields(value))
+    return False
 
 
 def _terminate(signum, frame):
