@@ -28,7 +28,7 @@ import zenoh
 
 from rescuemesh.transport.zenoh_link import check_endpoint, session_config
 
-__all__ = ["CALL_TIMEOUT_S", "CallClient", "CallServer", "ControlError", "Keys", "Liveliness", "RemoteError",
+__all__ = ["CALL_TIMEOUT_S", "Answer", "Call", "CallClient", "CallServer", "ControlError", "Keys", "Liveliness", "RemoteError",
            "check_endpoint", "dumps", "loads", "open_session"]
 
 #: How long one call waits for its reply, in s: a robot that does not answer in this time is gone.
@@ -49,6 +49,28 @@ _SAFE_GLOBALS = {
     ("numpy.core.multiarray", "scalar"), ("numpy._core.multiarray", "scalar"),
     ("numpy._core.numeric", "_frombuffer"), ("numpy.core.numeric", "_frombuffer"),
 }
+
+
+class Call(enum.Enum):
+    """What the world asks a robot (the first item of every request: `(Call.TICK, now, state)`)."""
+
+    SETUP = "setup"  # (RobotSetup): assemble the robot; answers its stack's timer
+    TICK = "tick"  # (now, BodyState): step the brain; answers (transmissions, timer, wheel command)
+    FLUSH = "flush"  # (now,): what the stack sends now; answers as TICK does
+    RECEIVE = "receive"  # (frame, now, rssi, relay delay): a frame heard; answers (transmissions, timer)
+    TIMER = "timer"  # (now,): the stack's timer is due; answers (transmissions, timer)
+    GET = "get"  # (path,): read an attribute; answers (Answer, value or None)
+    CALL = "call"  # (path, args, kwargs): call a method; answers its value
+    STATS = "stats"  # (): pid and CPU time
+    BYE = "bye"  # (): halt and leave
+
+
+class Answer(enum.Enum):
+    """What a GET found: data (copied), a method, or another object (read by reference)."""
+
+    VALUE = "value"
+    CALLABLE = "callable"
+    REFERENCE = "reference"
 
 
 class ControlError(RuntimeError):

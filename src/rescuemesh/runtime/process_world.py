@@ -27,7 +27,7 @@ from rescuemesh.geometry import Pose2D
 from rescuemesh.maps import MapModel
 from rescuemesh.robot import robot_address
 from rescuemesh.runtime.config import SimConfig
-from rescuemesh.runtime.control import CallClient, ControlError, Keys, Liveliness, open_session
+from rescuemesh.runtime.control import Call, CallClient, ControlError, Keys, Liveliness, open_session
 from rescuemesh.runtime.remote import RemoteObject, RemoteStack, RobotGone
 from rescuemesh.runtime.robot_process import BodyState, RobotSetup
 from rescuemesh.runtime.sim_loop import SimRuntime, _position_of
@@ -115,7 +115,7 @@ class ProcessRuntime(SimRuntime):
         setup = RobotSetup(name, self.starts[name], replace(self.config, team_key=None), self.map,
                            epoch=self.joins[name], kind=body.kind, top_height=body.top_height,
                            key_from_seed=self.key_from_seed)
-        timer = self.host.client.call(name, ("setup", setup))
+        timer = self.host.client.call(name, (Call.SETUP, setup))
         self.stacks[name].prime([], timer)
         self._sent_scan.pop(name, None)
         self.live.add(name)
@@ -153,7 +153,7 @@ class ProcessRuntime(SimRuntime):
     def call(self, robot: str, request: tuple):
         if robot not in self.live:
             raise RobotGone(f"{robot}'s process is gone")
-        if request[0] == "call":
+        if request[0] is Call.CALL:
             self._called.add(robot)
         try:
             return self.host.client.call(robot, request)
@@ -182,14 +182,14 @@ class ProcessRuntime(SimRuntime):
         super().step(script)
 
     def _step_robots(self, now: float) -> None:
-        self._ticked = self._call_live({name: ("tick", now, self._body_state(name)) for name in sorted(self.live)})
+        self._ticked = self._call_live({name: (Call.TICK, now, self._body_state(name)) for name in sorted(self.live)})
         self._called.clear()
 
     def _collect_robots(self, now: float) -> None:
         """What each robot sends and its wheel command: the tick's answer, and for a robot the mission
         script called into since, what that added (one pop of the stack at `now` split in two: the
         frames come out in the same order)."""
-        again = self._call_live({name: ("flush", now) for name in sorted(self._called & set(self._ticked))})
+        again = self._call_live({name: (Call.FLUSH, now) for name in sorted(self._called & set(self._ticked))})
         for name, (transmissions, timer, command) in self._ticked.items():
             if name in again:
                 more, timer, command = again[name]
@@ -213,7 +213,7 @@ class ProcessRuntime(SimRuntime):
     def processes(self) -> list[dict]:
         """Each process of the run: name, pid, CPU time in s (the robots' as they report it)."""
         rows = [{"name": "world", "pid": os.getpid(), "cpu_s": round(time.process_time(), 3)}]
-        for name, answer in sorted(self._call_live({n: ("stats",) for n in sorted(self.live)}).items()):
+        for name, answer in sorted(self._call_live({n: (Call.STATS,) for n in sorted(self.live)}).items()):
             rows.append({"name": name, **answer, "joins": self.joins[name]})
         for name in sorted(set(self.brains) - self.live):
             rows.append({"name": name, "pid": None, "cpu_s": None, "joins": self.joins[name]})
@@ -222,5 +222,5 @@ class ProcessRuntime(SimRuntime):
     def close(self) -> None:
         """Tell every live robot to halt and leave."""
         if self.live:
-            self.host.client.call_all({name: ("bye",) for name in sorted(self.live)}, tolerate=True)
+            self.host.client.call_all({name: (Call.BYE,) for name in sorted(self.live)}, tolerate=True)
             self.live.clear()

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from rescuemesh.runtime.control import ControlError
+from rescuemesh.runtime.control import Answer, Call, ControlError
 
 
 class RobotGone(ControlError):
@@ -41,10 +41,10 @@ class RemoteObject:
         if name.startswith("_"):
             raise AttributeError(name)
         path = self._path + (name,)
-        answer = self._link.call(self._robot, ("get", path))
-        if answer[0] == "value":
-            return answer[1]
-        if answer[0] == "callable":
+        kind, value = self._link.call(self._robot, (Call.GET, path))
+        if kind is Answer.VALUE:
+            return value
+        if kind is Answer.CALLABLE:
             return _RemoteMethod(self._link, self._robot, path)
         return RemoteObject(self._link, self._robot, path)
 
@@ -60,7 +60,7 @@ class _RemoteMethod:
         self._link, self._robot, self._path = link, robot, path
 
     def __call__(self, *args, **kwargs) -> Any:
-        return self._link.call(self._robot, ("call", self._path, args, kwargs))
+        return self._link.call(self._robot, (Call.CALL, self._path, args, kwargs))
 
 
 class RemoteStack(RemoteObject):
@@ -78,10 +78,10 @@ class RemoteStack(RemoteObject):
         object.__setattr__(self, "_timer", timer)
 
     def receive(self, data: bytes, now: float, *, rssi_dbm: float | None = None, relay_delay_s: float = 0.0) -> None:
-        self.prime(*self._link.call_stack(self._robot, ("receive", data, now, rssi_dbm, relay_delay_s)))
+        self.prime(*self._link.call_stack(self._robot, (Call.RECEIVE, data, now, rssi_dbm, relay_delay_s)))
 
     def handle_timer(self, now: float) -> None:
-        self.prime(*self._link.call_stack(self._robot, ("timer", now)))
+        self.prime(*self._link.call_stack(self._robot, (Call.TIMER, now)))
 
     def transmissions(self, now: float) -> list:
         pending = self._pending

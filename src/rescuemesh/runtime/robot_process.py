@@ -34,7 +34,7 @@ from rescuemesh.maps import MapModel
 from rescuemesh.nav import Costmap
 from rescuemesh.runtime.assembly import assemble_robot, team_sealer
 from rescuemesh.runtime.config import SimConfig
-from rescuemesh.runtime.control import CallServer, ControlError, Keys, Liveliness, open_session
+from rescuemesh.runtime.control import Answer, Call, CallServer, ControlError, Keys, Liveliness, open_session
 
 #: A robot that hears nothing from its world this long (s) halts and leaves.
 IDLE_TIMEOUT_S = 60.0
@@ -99,20 +99,20 @@ class RemoteBody(Body):
 
 
 class RobotWorker:
-    """Answers the world's calls for one robot. `done` turns True after "bye"."""
+    """Answers the world's calls for one robot. `done` turns True after Call.BYE."""
 
     def __init__(self, name: str, team_key: bytes | None = None) -> None:
         self.name, self.team_key = name, team_key
         self.brain = self.stack = self.body = None
         self.done = False
-        self._handlers = {"setup": self._setup, "tick": self._tick, "flush": self._flush, "receive": self._receive,
-                          "timer": self._timer, "get": self._get, "call": self._call, "stats": self._stats,
-                          "bye": self._bye}
+        self._handlers = {Call.SETUP: self._setup, Call.TICK: self._tick, Call.FLUSH: self._flush,
+                          Call.RECEIVE: self._receive, Call.TIMER: self._timer, Call.GET: self._get,
+                          Call.CALL: self._call, Call.STATS: self._stats, Call.BYE: self._bye}
 
     def handle(self, request: tuple) -> Any:
         kind, *args = request
-        if kind != "setup" and self.brain is None and kind not in ("stats", "bye"):
-            raise ControlError(f"{self.name}: {kind!r} before set-up")
+        if self.brain is None and kind not in (Call.SETUP, Call.STATS, Call.BYE):
+            raise ControlError(f"{self.name}: {kind.value} before set-up")
         return self._handlers[kind](*args)
 
     def halt(self) -> None:
@@ -161,12 +161,13 @@ class RobotWorker:
         return value
 
     def _get(self, path: tuple[str, ...]):
-        """("callable",), ("value", v) for data (is_data), ("ref",) for any other object: a behaviour
-        with its navigation and costmap stays here, and the world reads what it needs of it."""
+        """(Answer.VALUE, v) for data (is_data), (Answer.CALLABLE, None) for a method, (Answer.REFERENCE,
+        None) for any other object: a behaviour with its navigation and costmap stays here, and the
+        world reads what it needs of it."""
         value = self._resolve(path)
         if callable(value):
-            return ("callable",)
-        return ("value", value) if is_data(value) else ("ref",)
+            return Answer.CALLABLE, None
+        return (Answer.VALUE, value) if is_data(value) else (Answer.REFERENCE, None)
 
     def _call(self, path: tuple[str, ...], args: tuple, kwargs: dict):
         return self._resolve(path)(*args, **kwargs)
