@@ -52,7 +52,8 @@ def test_a_run_in_processes_is_the_same_run_as_in_one_process(tmp_path, scenario
     assert names == ["world", "robot_1", "robot_2", "robot_3"]
     assert len({p["pid"] for p in runtime["processes"]}) == 4 and all(p["cpu_s"] > 0 for p in runtime["processes"])
     for name in names[1:]:
-        assert "joined the world" in (tmp_path / "many" / "processes" / f"{name}.log").read_text()
+        log = (tmp_path / "many" / "processes" / f"{name}.log").read_text()
+        assert "joined the world" in log and "the world's run is over: wheels halted, leaving" in log
 
 
 def test_a_scenario_that_cannot_run_in_processes_says_so(tmp_path):

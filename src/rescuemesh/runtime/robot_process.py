@@ -235,6 +235,8 @@ def serve_robot(name: str, connect: str, *, run: str = "default", team_key: byte
                 print(f"{name}: {item}: wheels halted, leaving", file=out, flush=True)
                 break
             CallServer.answer(item, worker.handle)
+        else:
+            print(f"{name}: the world's run is over: wheels halted, leaving", file=out, flush=True)
         return 0
     except KeyboardInterrupt:
         print(f"{name}: interrupted: wheels halted, leaving", file=out, flush=True)
