@@ -28,8 +28,8 @@ import zenoh
 
 from rescuemesh.transport.zenoh_link import check_endpoint, session_config
 
-__all__ = ["CALL_TIMEOUT_S", "Answer", "Call", "CallClient", "CallServer", "ControlError", "Keys", "Liveliness", "RemoteError",
-           "check_endpoint", "dumps", "loads", "open_session"]
+__all__ = ["CALL_TIMEOUT_S", "Answer", "Call", "CallClient", "CallServer", "ControlError", "Keys", "Liveliness",
+           "RemoteError", "check_endpoint", "dumps", "loads", "open_session"]
 
 #: How long one call waits for its reply, in s: a robot that does not answer in this time is gone.
 CALL_TIMEOUT_S = 20.0

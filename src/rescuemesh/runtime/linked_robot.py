@@ -104,28 +104,35 @@ def parse_pose(text: str, what: str) -> Pose2D:
 def build_ros1_robot(options: dict):
     """A ROS 1 robot's body (its odometry, scan and cmd_vel topics), brain, stack and the paper's
     topics: (body, brain, stack, paper). Raises Ros1Unavailable or NoOdometryError (one line each)."""
-    from rescuemesh.nav import Costmap
     from rescuemesh.runtime.ros1_body import Ros1Body, init_node
     from rescuemesh.runtime.ros1_paper import Ros1Paper
 
     name = options["name"]
     init_node(f"rescuemesh_{name}")
     body = Ros1Body(name, odometry_wait_s=options["odometry_wait"])
-    grid = options["grid"] if options["grid"] is not None else empty_grid(size_m=EMPTY_MAP_SIZE_M)
-    brain, stack = assemble_robot(name, body, Costmap(grid), options["config"], team_sealer(options["config"]),
-                                  body.pose())
+    brain, stack = _software(name, body, options["config"], _grid(options["grid"]), body.pose())
     return body, brain, stack, Ros1Paper(brain)
 
 
 def build_robot(name: str, start: Pose2D, config: SimConfig, clock: Callable[[], float],
                 grid: OccupancyGrid | None = None):
     """Robot `name`'s body, brain and network stack, without a link: (body, brain, stack)."""
+    grid = _grid(grid)
+    body = KinematicBody(name, start, clock, grid=grid)
+    brain, stack = _software(name, body, config, grid, start)
+    return body, brain, stack
+
+
+def _grid(grid: OccupancyGrid | None) -> OccupancyGrid:
+    """The robot's map, or an empty square centred on the origin for a robot without one."""
+    return grid if grid is not None else empty_grid(size_m=EMPTY_MAP_SIZE_M)
+
+
+def _software(name: str, body, config: SimConfig, grid: OccupancyGrid, start: Pose2D):
+    """The robot's brain and network stack on `body` (runtime/assembly.py): (brain, stack)."""
     from rescuemesh.nav import Costmap
 
-    grid = grid if grid is not None else empty_grid(size_m=EMPTY_MAP_SIZE_M)
-    body = KinematicBody(name, start, clock, grid=grid)
-    brain, stack = assemble_robot(name, body, Costmap(grid), config, team_sealer(config), start)
-    return body, brain, stack
+    return assemble_robot(name, body, Costmap(grid), config, team_sealer(config), start)
 
 
 class Mission:

@@ -35,12 +35,14 @@ def run_scenario(name: str, options: ScenarioOptions, *, map_path: Path | None =
                  out_dir: Path | None = None,
                  progress: Callable[[float, float], None] | None = None,
                  processes: ProcessOptions | None = None, realtime: bool = False,
-                 live_port: int | None = None) -> RunOutcome:
+                 live_port: int | None = None, map_model: MapModel | None = None) -> RunOutcome:
     """Run scenario `name`. Raises ScenarioError / MapError / ValueError for bad options (a `live_port`
     that cannot be served too). With `out_dir`, the run is recorded to `out_dir/run.mcap`; with
-    `live_port`, the same channels are served on ws://127.0.0.1:live_port during the run."""
+    `live_port`, the same channels are served on ws://127.0.0.1:live_port during the run.
+    `map_model`: the map already loaded from `map_path` (not loaded again)."""
     cls = get_scenario(name)
-    map_model: MapModel = load_map(map_path or office_map_path())
+    if map_model is None:
+        map_model = load_map(map_path or office_map_path())
     scenario = cls(options, map_model)
     config = scenario.sim_config()
     if processes is not None and not cls.runs_as_processes:
