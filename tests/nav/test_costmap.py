@@ -97,3 +97,26 @@ def test_a_blocked_path_check_answers_as_the_stamped_layer_without_stamping_the_
         assert answer == bool((stamped.costs_at(np.stack([xs, ys], axis=1)) >= LETHAL).any())
         for x, y in zip(xs, ys):  # point by point too: the near/far edge of the lethal disc
             assert lazy.any_lethal(np.array([x]), np.array([y])) == (stamped.cost_at(x, y) >= LETHAL)
+
+
+def test_a_window_of_costs_is_the_stamped_map_there_without_stamping_the_map(room_costmap):
+    # a planner asks for its search window only; points near or beyond its edges are stamped too
+    rng = np.random.default_rng(7)
+    h, w = room_costmap.shape
+    for trial in range(30):
+        points = rng.uniform((0.2, 0.2), (5.8, 3.8), size=(int(rng.integers(1, 40)), 2))
+        r0, c0 = int(rng.integers(-5, h - 5)), int(rng.integers(-5, w - 5))
+        r1, c1 = r0 + int(rng.integers(1, 40)), c0 + int(rng.integers(1, 60))
+        lazy = room_costmap.with_obstacles(points, float(trial))
+        part = lazy.cost_in(r0, r1, c0, c1)
+        assert lazy._cost is None, "the window stamped the whole map"
+        full = room_costmap.with_obstacles(points, float(trial)).cost
+        np.testing.assert_array_equal(part, full[max(r0, 0):r1, max(c0, 0):c1])
+        # lookups inside the window read it; outside, the whole map is stamped, with the same costs
+        rr = rng.integers(max(r0, 0), min(r1, h), 10)
+        cc = rng.integers(max(c0, 0), min(c1, w), 10)
+        xy = np.array([lazy.cell_to_world(r, c) for r, c in zip(rr, cc)])
+        np.testing.assert_array_equal(lazy.costs_at(xy), full[rr, cc])
+        assert [lazy.cost_at(x, y) for x, y in xy] == [float(v) for v in full[rr, cc]]
+        assert lazy._cost is None
+        np.testing.assert_array_equal(lazy.costs_at(np.array([[0.1, 0.1], [5.9, 3.9]])), full[[2, 78], [2, 118]])

@@ -7,6 +7,7 @@ from rescuemesh.geometry import Pose2D
 from rescuemesh.maps.grid import OccupancyGrid
 from rescuemesh.nav import PLANNERS, Costmap, MCPPlanner, Planner, make_planner, register_planner
 from rescuemesh.nav.path import cumulative_lengths
+from rescuemesh.nav.planner import _area
 
 ROBOT_RADIUS = 0.177
 
@@ -136,3 +137,50 @@ def test_a_detour_wider_than_the_window_is_still_found_on_the_whole_map():
     assert path is not None and path.length_m > 160.0
     assert planner._graph[0] == (0, 1000, 0, 1000)  # it had to search the whole map
     assert not costmap.any_lethal(path.points[:, 0], path.points[:, 1])
+
+
+def _plans_agree(a, b) -> bool:
+    return (a is None) == (b is None) and (a is None or np.array_equal(a.points, b.points))
+
+
+def test_a_path_proved_best_in_a_small_window_is_the_whole_map_search_path(room_costmap):
+    # the first, small window keeps its path only when no path leaving it can be cheaper: the
+    # same points as searching the whole map, with and without scan obstacles, snapped goals too
+    rng = np.random.default_rng(3)
+    free = np.argwhere(~room_costmap.lethal)
+    small, whole = MCPPlanner(), MCPPlanner(first_margin_m=None, window_margin_m=None)
+    searched = []
+    for trial in range(120):
+        r, c = free[rng.integers(len(free))]
+        sx, sy = room_costmap.cell_to_world(r, c)
+        d, a = rng.choice([0.5, 1.0, 2.0, 4.0]), rng.uniform(0.0, 2.0 * math.pi)
+        goal = Pose2D(sx + d * math.cos(a), sy + d * math.sin(a))
+        blobs = rng.uniform((0.5, 0.5), (5.5, 3.5), size=(int(rng.integers(0, 4)), 2))
+        points = (blobs[:, None, :] + rng.normal(0.0, 0.1, (len(blobs), 20, 2))).reshape(-1, 2)
+        tol = 0.5 if trial % 2 else 0.0
+        cm = room_costmap.with_obstacles(points, float(trial), clear_center=(goal.x, goal.y), clear_radius=tol)
+        fresh = room_costmap.with_obstacles(points, float(trial), clear_center=(goal.x, goal.y), clear_radius=tol)
+        got = small.plan(cm, Pose2D(sx, sy), goal, goal_tolerance=tol)
+        assert _plans_agree(got, whole.plan(fresh, Pose2D(sx, sy), goal, goal_tolerance=tol)), trial
+        if got is not None and d <= 1.0:
+            searched.append(_area(small._graph[0]))
+    assert np.median(searched) < 0.5 * 60 * 40  # short plans searched a window, not the 60 x 40 coarse map
+
+
+def test_a_cheaper_way_out_of_the_small_window_is_not_missed():
+    # start and goal 1.1 m apart across a wall: a tight slot (costly, near both jambs) between them
+    # inside the first window, a wide doorway outside it; the doorway is cheaper
+    occ = np.zeros((200, 200), dtype=bool)
+    occ[:2, :] = occ[-2:, :] = occ[:, :2] = occ[:, -2:] = True
+    occ[:, 100:102] = True
+    occ[94:106, 100:102] = False  # 0.6 m slot at y = 5 m
+    occ[126:156, 100:102] = False  # 1.5 m doorway from y = 6.3 m, beyond the first window
+    cm = Costmap(OccupancyGrid(occ, 0.05, 0.0, 0.0))
+    start, goal = Pose2D(4.5, 5.0), Pose2D(5.6, 5.0)
+    planner = MCPPlanner()
+    path = planner.plan(cm, start, goal)
+    reference = MCPPlanner(first_margin_m=None, window_margin_m=None).plan(cm, start, goal)
+    assert _plans_agree(path, reference)
+    assert path.points[:, 1].max() > 6.3  # through the doorway, not the slot
+    slot_only = MCPPlanner(first_margin_m=None, window_margin_m=0.5).plan(cm, start, goal)
+    assert slot_only is not None and slot_only.points[:, 1].max() < 6.0  # a window can hold the worse way

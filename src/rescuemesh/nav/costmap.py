@@ -8,7 +8,8 @@ obstacle surface (EDT distance to the nearest occupied cell centre minus half a 
 clearance is below `inscribed_radius` is LETHAL (cost 1.0): the robot's centre there would touch.
 Beyond, the cost decays as Nav2's `exp(-cost_scaling * (clearance - inscribed_radius))` scaled to
 [0, MAX_NON_LETHAL], and is 0 beyond `inflation_radius`. Scan obstacles are stamped with a
-precomputed disc kernel of the same profile; only cells near the points are touched.
+precomputed disc kernel of the same profile; only cells near the points are touched, and only over
+the part of the map asked for (`cost_in`: a planner's search window) until the whole array is.
 """
 
 from __future__ import annotations
@@ -82,12 +83,14 @@ class Costmap:
         self.static_cost = inflation_cost(clearance, self.inscribed_radius, self.inflation_radius, self.cost_scaling)
         self._cost = self.static_cost
         self._lethal = self._static_lethal = self.static_cost >= LETHAL
+        self._window: tuple[tuple[int, int, int, int], np.ndarray] | None = None  # the last `cost_in` stamped
         self._obstacle_cells = np.zeros(0, dtype=np.int64)
         self.obstacle_points = np.zeros((0, 2))
         self.obstacle_stamp: float | None = None
         self._kernel = self._make_kernel()
         dr, dc, kval = self._kernel
         n = int(max(np.abs(dr).max(), np.abs(dc).max())) if len(dr) else 0
+        self._kernel_reach = n  # cells: an obstacle cell's stamp ends this far from it
         self._lethal_disc = np.zeros((2 * n + 1, 2 * n + 1), dtype=bool)  # kernel offsets that are LETHAL
         self._lethal_disc[dr[kval >= LETHAL] + n, dc[kval >= LETHAL] + n] = True
 
@@ -123,6 +126,10 @@ class Costmap:
         h, w = self.shape
         if not (0 <= row < h and 0 <= col < w):
             return LETHAL
+        if self._cost is None and self._window is not None:
+            (r0, r1, c0, c1), part = self._window
+            if r0 <= row < r1 and c0 <= col < c1:
+                return float(part[row - r0, col - c0])
         return float(self.cost[row, col])
 
     def is_free(self, x: float, y: float) -> bool:
@@ -133,7 +140,13 @@ class Costmap:
         """Costs in [0, 1] at an (N, 2) array of map points in m; LETHAL outside the grid."""
         rows, cols, inside = self.cells_of(xy)
         out = np.full(len(rows), LETHAL, dtype=np.float32)
-        out[inside] = self.cost[rows[inside], cols[inside]]
+        rows, cols = rows[inside], cols[inside]
+        if self._cost is None and self._window is not None and len(rows):
+            (r0, r1, c0, c1), part = self._window  # points within the stamped window: no whole-map stamp
+            if r0 <= rows.min() and rows.max() < r1 and c0 <= cols.min() and cols.max() < c1:
+                out[inside] = part[rows - r0, cols - c0]
+                return out
+        out[inside] = self.cost[rows, cols]
         return out
 
     def any_lethal(self, xs: np.ndarray, ys: np.ndarray) -> bool:
@@ -201,10 +214,17 @@ class Costmap:
         keep[inside] = self.static_clearance[rows[inside], cols[inside]] >= 1.5 * self.resolution
         out.obstacle_points = pts[keep]
         out._cost = out._lethal = None  # built on first use: a blocked-path check does not need them
+        out._window = None
         out._obstacle_cells = np.unique(rows[keep] * self.shape[1] + cols[keep])
         if not keep.any():
             out._cost, out._lethal = self.static_cost, self._static_lethal
         return out
+
+    @property
+    def obstacle_cells(self) -> np.ndarray:
+        """Sorted flat indices (row * cols + col) of the cells holding obstacle-layer points: two
+        costmaps sharing `static_cost` with equal `obstacle_cells` have equal costs."""
+        return self._obstacle_cells
 
     @property
     def cost(self) -> np.ndarray:
@@ -218,18 +238,43 @@ class Costmap:
             self._stamp_obstacles()
         return self._lethal
 
+    def cost_in(self, r0: int, r1: int, c0: int, c1: int) -> np.ndarray:
+        """`cost[r0:r1, c0:c1]` (clipped to the grid), stamping only the obstacle cells whose
+        inflation reaches that window when the whole array is not built yet. The last window is
+        kept: `cost_at` and `costs_at` of points inside it read it instead of stamping the map."""
+        h, w = self.shape
+        r0, r1, c0, c1 = max(r0, 0), min(r1, h), max(c0, 0), min(c1, w)
+        if self._cost is not None:
+            return self._cost[r0:r1, c0:c1]
+        key = (r0, r1, c0, c1)
+        if self._window is None or self._window[0] != key:
+            self._window = (key, self._stamped(*key))
+        return self._window[1]
+
     def _stamp_obstacles(self) -> None:
         """The full cost array: the static layer with every obstacle cell's inflation kernel stamped."""
-        h, w = self.static_cost.shape
+        h, w = self.shape
+        self._cost = self._stamped(0, h, 0, w)
+        self._lethal = self._cost >= LETHAL
+
+    def _stamped(self, r0: int, r1: int, c0: int, c1: int) -> np.ndarray:
+        """A copy of `static_cost[r0:r1, c0:c1]` (within the grid) with the inflation kernel of
+        every obstacle cell stamped where it reaches (the highest cost wins)."""
+        w = self.shape[1]
+        cost = self.static_cost[r0:r1, c0:c1].copy()
         flat = self._obstacle_cells
+        if len(flat) == 0:
+            return cost
         dr, dc, kval = self._kernel
-        rr = (flat // w)[:, None] + dr[None, :]
-        cc = (flat % w)[:, None] + dc[None, :]
-        ok = (rr >= 0) & (rr < h) & (cc >= 0) & (cc < w)
-        cost = self.static_cost.copy()
-        np.maximum.at(cost.reshape(-1), (rr * w + cc)[ok], np.broadcast_to(kval, rr.shape)[ok])
-        self._cost = cost
-        self._lethal = cost >= LETHAL
+        n = self._kernel_reach
+        orow, ocol = flat // w, flat % w
+        near = (orow >= r0 - n) & (orow < r1 + n) & (ocol >= c0 - n) & (ocol < c1 + n)  # reaching the window
+        rr = (orow[near] - r0)[:, None] + dr[None, :]
+        cc = (ocol[near] - c0)[:, None] + dc[None, :]
+        hh, ww = cost.shape
+        ok = (rr >= 0) & (rr < hh) & (cc >= 0) & (cc < ww)
+        np.maximum.at(cost.reshape(-1), (rr * ww + cc)[ok], np.broadcast_to(kval, rr.shape)[ok])
+        return cost
 
     def _make_kernel(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Cell offsets (drow, dcol) and costs of one obstacle cell, inflated: the stamp for scan points."""

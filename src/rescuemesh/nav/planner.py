@@ -118,10 +118,20 @@ class MCPPlanner(Planner):
     by `window_margin_m` (8 m), and on the whole map only when the window holds no path (a detour
     wider than the margin) or covers half the map anyway. A path found in the window is the best
     one inside it; a shorter path leaving the window by more than the margin is not looked for.
-    The coarse grid and its MCP graph (about half a plan's time) are kept for the last cost array
-    and window planned on: costmaps are never modified, and successive costmaps share their cost
-    array while no scan obstacle is added (see `Costmap.with_obstacles`). Searches on the kept
-    graph give the same paths, as `find_costs` resets it.
+
+    Building the MCP graph costs in proportion to the window's area, whatever the path's length
+    (a follower plans about 1 m every second), so a smaller window is tried first: the box grown by
+    `first_margin_m` (1 m). Its path is kept only when it is provably the best on the whole map: every
+    step costs at least its length (cell costs are >= 1), so a path leaving the window costs at
+    least the shortest way from start to a cell outside it and on to the goal; a path found at
+    most that dear cannot be beaten. Otherwise the window grows once to the margin that cost
+    proves enough, then the 8 m window and the whole map as above. The certified path is the one
+    the larger windows find too (up to ties between equally cheap cell paths).
+
+    Only the window's costs are stamped with scan obstacles (`Costmap.cost_in`). The coarse grid
+    and its MCP graph are kept for the last window and costs planned on (the same static layer and
+    obstacle cells): costmaps are never modified. Searches on the kept graph give the same paths,
+    as `find_costs` resets it.
     """
 
     def __init__(
@@ -133,10 +143,13 @@ class MCPPlanner(Planner):
         max_segment_m: float = 2.0,
         smooth: bool = True,
         window_margin_m: float | None = 8.0,
+        first_margin_m: float | None = 1.0,
     ) -> None:
         """`start_snap_radius` in m: how far a start inside lethal space may be moved; `max_segment_m` in m.
         `window_margin_m`: search the box around start and goal grown by this many m first, and the
-        whole map only when that box holds no path (None: always the whole map)."""
+        whole map only when that box holds no path (None: always the whole map).
+        `first_margin_m`: before that, the box grown by this many m, its path kept when provably
+        the best on the whole map (None: skip)."""
         if downsample < 1:
             raise ValueError("downsample must be >= 1")
         self.downsample = int(downsample)
@@ -145,25 +158,28 @@ class MCPPlanner(Planner):
         self.max_segment_m = float(max_segment_m)
         self.smooth = smooth
         self.window_margin_m = window_margin_m
-        self._graph: tuple | None = None  # (window, costmap.cost, coarse lethal, graph) of the last search
+        self.first_margin_m = first_margin_m
+        # (window, static cost, obstacle cells, coarse lethal, graph) of the last search
+        self._graph: tuple | None = None
 
     def _search_graph(self, costmap: Costmap, window: tuple[int, int, int, int]) -> tuple[np.ndarray, MCP_Geometric]:
         """(coarse lethal mask, MCP graph over the coarse costs) of `window` (coarse rows r0:r1,
-        cols c0:c1) of `costmap`, reused for the same cost array and window."""
-        key = (window, costmap.cost)
-        if self._graph is None or self._graph[0] != key[0] or self._graph[1] is not key[1]:
+        cols c0:c1) of `costmap`, reused for the same window and costs."""
+        kept = self._graph
+        if (kept is None or kept[0] != window or kept[1] is not costmap.static_cost
+                or not np.array_equal(kept[2], costmap.obstacle_cells)):
             coarse = self._coarse_cost(costmap, window)
             lethal = coarse >= LETHAL
             graph = MCP_Geometric(np.where(lethal, np.inf, 1.0 + self.cost_weight * coarse), fully_connected=True)
-            self._graph = (window, costmap.cost, lethal, graph)
-        return self._graph[2], self._graph[3]
+            self._graph = kept = (window, costmap.static_cost, costmap.obstacle_cells, lethal, graph)
+        return kept[3], kept[4]
 
     def _coarse_cost(self, costmap: Costmap, window: tuple[int, int, int, int]) -> np.ndarray:
         """The highest cost of each k x k block of cells in `window` (coarse cells; blocks past the
         map's edge count as lethal)."""
         k = self.downsample
         r0, r1, c0, c1 = window
-        cost = costmap.cost[r0 * k:r1 * k, c0 * k:c1 * k]
+        cost = costmap.cost_in(r0 * k, r1 * k, c0 * k, c1 * k)
         if k == 1:
             return cost
         h, w = cost.shape
@@ -176,47 +192,83 @@ class MCPPlanner(Planner):
                     np.maximum(out, padded[dr::k, dc::k], out=out)
         return out
 
-    def _windows(self, costmap: Costmap, start: Pose2D, goal: Pose2D) -> list[tuple[int, int, int, int]]:
-        """Coarse-cell windows to search, smallest first: the box around start and goal grown by
-        `window_margin_m` (when that is well under the whole map), then the whole map."""
+    def _box(self, costmap: Costmap, start: Pose2D, goal: Pose2D, margin: int) -> tuple[int, int, int, int] | None:
+        """The coarse-cell window around start and goal grown by `margin` cells, clipped to the
+        map; None when empty (both off the map)."""
         k = self.downsample
         cell = costmap.resolution * k
         rows, cols = (-(-n // k) for n in costmap.shape)
-        whole = (0, rows, 0, cols)
-        if self.window_margin_m is None:
-            return [whole]
         ox, oy = costmap.grid.origin_x, costmap.grid.origin_y
-        margin = int(math.ceil(self.window_margin_m / cell))
         r = [math.floor((y - oy) / cell) for y in (start.y, goal.y)]
         c = [math.floor((x - ox) / cell) for x in (start.x, goal.x)]
         window = (max(0, min(r) - margin), min(rows, max(r) + margin + 1),
                   max(0, min(c) - margin), min(cols, max(c) + margin + 1))
-        if window[0] >= window[1] or window[2] >= window[3]:
+        return None if window[0] >= window[1] or window[2] >= window[3] else window
+
+    def _windows(self, costmap: Costmap, start: Pose2D, goal: Pose2D) -> list[tuple[int, int, int, int]]:
+        """Coarse-cell windows to search, smallest first: the box around start and goal grown by
+        `window_margin_m` (when that is well under the whole map), then the whole map."""
+        k = self.downsample
+        rows, cols = (-(-n // k) for n in costmap.shape)
+        whole = (0, rows, 0, cols)
+        if self.window_margin_m is None:
             return [whole]
-        area = (window[1] - window[0]) * (window[3] - window[2])
-        return [window, whole] if area < WHOLE_MAP_SHARE * rows * cols else [whole]
+        window = self._box(costmap, start, goal, int(math.ceil(self.window_margin_m / (costmap.resolution * k))))
+        if window is None:
+            return [whole]
+        return [window, whole] if _area(window) < WHOLE_MAP_SHARE * rows * cols else [whole]
 
     def plan(self, costmap: Costmap, start: Pose2D, goal: Pose2D, *, goal_tolerance: float = 0.0) -> Path | None:
         windows = self._windows(costmap, start, goal)
+        path = self._plan_certified(costmap, start, goal, goal_tolerance, _area(windows[0]))
+        if path is not None:
+            return path
         for window in windows:
-            path = self._plan_in(costmap, start, goal, goal_tolerance, window)
-            if path is not None:
+            found = self._plan_in(costmap, start, goal, goal_tolerance, window)
+            if found is not None:
+                return found[0]
+        return None
+
+    def _plan_certified(self, costmap: Costmap, start: Pose2D, goal: Pose2D, goal_tolerance: float,
+                        area_limit: int) -> Path | None:
+        """The best path on the whole map found in a window smaller than `area_limit` coarse cells
+        (see the class docstring), or None when no such window proves its path the best."""
+        if self.first_margin_m is None:
+            return None
+        cell = costmap.resolution * self.downsample
+        # the snapping searches (nearest_free) must not be clipped by the window's edge
+        reach = max(self.start_snap_radius, goal_tolerance, 1.5 * cell)
+        margin = int(math.ceil(max(self.first_margin_m, reach) / cell)) + 2
+        for _ in range(2):
+            window = self._box(costmap, start, goal, margin)
+            if window is None or _area(window) >= area_limit:
+                return None
+            found = self._plan_in(costmap, start, goal, goal_tolerance, window)
+            if found is None:
+                return None  # no path near: a detour, for the larger windows
+            path, cost, start_rc, goal_rc = found
+            if cost <= _exit_bound(window, start_rc, goal_rc, costmap.shape, self.downsample):
                 return path
+            # a window whose every exit costs more than this path: margin >= cost / 2 cells
+            margin = max(margin + 1, int(math.ceil(cost / 2.0)) + 2)
         return None
 
     def _plan_in(self, costmap: Costmap, start: Pose2D, goal: Pose2D, goal_tolerance: float,
-                 window: tuple[int, int, int, int]) -> Path | None:
+                 window: tuple[int, int, int, int]) -> tuple[Path, float, tuple[int, int], tuple[int, int]] | None:
+        """(path, its MCP cost in coarse cells, start and goal coarse cells on the whole map) of
+        the best path within `window`, or None."""
         k = self.downsample
         cell = costmap.resolution * k
         r_off, c_off = window[0], window[2]
-        ox, oy = costmap.grid.origin_x + c_off * cell, costmap.grid.origin_y + r_off * cell
+        ox, oy = costmap.grid.origin_x, costmap.grid.origin_y
         lethal, mcp = self._search_graph(costmap, window)
 
+        # cells of the window; positions computed from whole-map cells, the same in every window
         def to_cell(x: float, y: float) -> tuple[int, int]:
-            return (math.floor((y - oy) / cell), math.floor((x - ox) / cell))
+            return (math.floor((y - oy) / cell) - r_off, math.floor((x - ox) / cell) - c_off)
 
         def centre(rc: tuple[int, int]) -> tuple[float, float]:
-            return (ox + (rc[1] + 0.5) * cell, oy + (rc[0] + 0.5) * cell)
+            return (ox + (rc[1] + c_off + 0.5) * cell, oy + (rc[0] + r_off + 0.5) * cell)
 
         def nearest_free(x: float, y: float, radius: float) -> tuple[int, int] | None:
             r0, c0 = to_cell(x, y)
@@ -229,7 +281,7 @@ class MCPPlanner(Planner):
             if len(rr) == 0:
                 return None
             rr, cc = rr + rlo, cc + clo
-            d = np.hypot(ox + (cc + 0.5) * cell - x, oy + (rr + 0.5) * cell - y)
+            d = np.hypot(ox + (cc + c_off + 0.5) * cell - x, oy + (rr + r_off + 0.5) * cell - y)
             i = int(np.argmin(d))
             return (int(rr[i]), int(cc[i])) if d[i] <= radius else None
 
@@ -253,9 +305,11 @@ class MCPPlanner(Planner):
             return None
 
         cells = [start_rc]
+        cost = 0.0
         if goal_rc != start_rc:
             cum, _ = mcp.find_costs([start_rc], [goal_rc], find_all_ends=True)
-            if not np.isfinite(cum[goal_rc]):
+            cost = float(cum[goal_rc])
+            if not math.isfinite(cost):
                 return None
             cells = [tuple(rc) for rc in mcp.traceback(goal_rc)]
         pts = [centre(rc) for rc in cells]
@@ -273,7 +327,30 @@ class MCPPlanner(Planner):
         points = np.asarray(pts, dtype=float)
         if self.smooth:
             points = shortcut(costmap, points, max_segment_m=self.max_segment_m)
-        return Path.from_points(points)
+        return (Path.from_points(points), cost, (start_rc[0] + r_off, start_rc[1] + c_off),
+                (goal_rc[0] + r_off, goal_rc[1] + c_off))
+
+
+def _area(window: tuple[int, int, int, int]) -> int:
+    return (window[1] - window[0]) * (window[3] - window[2])
+
+
+def _exit_bound(window: tuple[int, int, int, int], a: tuple[int, int], b: tuple[int, int],
+                shape: tuple[int, int], k: int) -> float:
+    """Least MCP cost (coarse cells) of a path from cell `a` to cell `b` that visits a coarse
+    cell outside `window`: at least its length, at least the shortest way from `a` to a line of
+    cells just outside a side and on to `b` (the mirror image of `b`). inf when the window is the
+    whole coarse grid of a map of `shape` full cells."""
+    rows, cols = -(-shape[0] // k), -(-shape[1] // k)
+    r0, r1, c0, c1 = window
+    bound = math.inf
+    for line, present in ((r0 - 1, r0 > 0), (r1, r1 < rows)):
+        if present:
+            bound = min(bound, math.hypot(abs(a[0] - line) + abs(b[0] - line), a[1] - b[1]))
+    for line, present in ((c0 - 1, c0 > 0), (c1, c1 < cols)):
+        if present:
+            bound = min(bound, math.hypot(abs(a[1] - line) + abs(b[1] - line), a[0] - b[0]))
+    return bound
 
 
 @register_planner("straight")
