@@ -12,6 +12,16 @@ mujoco.mj_multiRay in a small MuJoCo model of its own, the LidarScene, holding c
 on mocap bodies that follow the world's bodies. mj_multiRay visits every geom of a model for every
 beam, even geoms its group mask rejects, so casting in the world's own model would cost in
 proportion to the wall count. The world's model, its physics and its pictures keep the wall boxes.
+
+mj_multiRay's cost is (beams cast) x (geoms in the scene): every beam tests every geom's bounding
+box. So a sweep casts only the beams that can reach a scene geom (`_beams_to_cast`): a geom's
+bounding sphere (geom_rbound, about its geom_xpos) cuts the beam plane in a disc, and only the beams
+whose angle lies within that disc's angular extent seen from the lidar, and whose range reaches
+it, can hit the geom. The robot's own geoms are skipped, as mj_multiRay's bodyexclude skips them.
+Each beam's result does not depend on the others (mj_multiRay loops over beams, engine_ray.c), so
+the ranges equal those of casting all beams; a beam that cannot hit a geom reads no return, as it
+would have. In a convoy most beams reach no other robot, and with no other robot in range none is
+cast.
 """
 
 from __future__ import annotations
@@ -21,6 +31,7 @@ from collections.abc import Collection
 from dataclasses import dataclass
 
 import mujoco
+import numba
 import numpy as np
 
 from rescuemesh.body import LaserScan
@@ -189,42 +200,51 @@ class Lidar:
         self._groups = np.array(LIDAR_GEOM_GROUPS, dtype=np.uint8)
         self._sees_walls = 0.0 <= config.height <= scene.walls.wall_height
         self._pnt = np.zeros(3)
-        self._vec = np.zeros((n, 3))
         self._cos = np.zeros(n)
         self._sin = np.zeros(n)
+        self._wall_dist = np.full(n, np.inf)
+        # The beams cast in MuJoCo this sweep: their indices, directions (z stays 0) and results.
+        self._cast = np.zeros(n, dtype=np.uint8)  # scratch: 1 where a beam is cast
+        self._cast_index = np.zeros(n, dtype=np.intp)
+        self._cast_vec = np.zeros((n, 3))
         self._geomid = np.zeros(n, dtype=np.int32)
         self._dist = np.zeros(n)
-        self._wall_dist = np.full(n, np.inf)
 
     def sweep(self, stamp: float, origin: Pose2D) -> LaserScan:
         """One sweep from `origin` (map frame) taken at `stamp` s; the scene must be current (refresh)."""
         cfg = self.config
         scene = self._scene
-        self._pnt[:] = (origin.x, origin.y, cfg.height)
-        world_angles = self._angles + origin.yaw
         cos, sin = self._cos, self._sin
+        world_angles = self._angles + origin.yaw
         np.cos(world_angles, out=cos)
         np.sin(world_angles, out=sin)
-        self._vec[:, 0] = cos
-        self._vec[:, 1] = sin
         if self._sees_walls:
             scene.walls.cast(origin.x, origin.y, cos, sin, cfg.range_max, self._wall_dist)
-        mujoco.mj_multiRay(
-            scene.model,
-            scene.data,
-            self._pnt,
-            self._vec.reshape(-1),
-            self._groups,
-            1,  # include static geoms
-            self._exclude,
-            self._geomid,
-            self._dist,
-            None,
-            cfg.beams,
-            cfg.range_max,
+        ranges = self._wall_dist.copy()
+        self._pnt[0] = origin.x
+        self._pnt[1] = origin.y
+        self._pnt[2] = cfg.height
+        count = _beams_to_cast(
+            scene.data.geom_xpos, scene.model.geom_rbound, scene.model.geom_bodyid, self._exclude, self._pnt,
+            cfg.angle_min + origin.yaw, cfg.angle_increment, cfg.range_max, cos, sin, self._cast, self._cast_index,
+            self._cast_vec,
         )
-        ranges = np.where(self._dist < 0.0, np.inf, self._dist)
-        np.minimum(ranges, self._wall_dist, out=ranges)
+        if count:
+            mujoco.mj_multiRay(
+                scene.model,
+                scene.data,
+                self._pnt,
+                self._cast_vec[:count].reshape(-1),
+                self._groups,
+                1,  # include static geoms
+                self._exclude,
+                self._geomid[:count],
+                self._dist[:count],
+                None,
+                count,
+                cfg.range_max,
+            )
+            _nearer(ranges, self._cast_index, self._dist, count)
         ranges[ranges > cfg.range_max] = np.inf
         if cfg.noise_std > 0.0:
             hit = np.isfinite(ranges)
@@ -239,3 +259,71 @@ class Lidar:
             range_max=cfg.range_max,
             ranges=ranges,
         )
+
+
+
+# Radius in m added to a geom's disc in the beam plane: a beam tangent to a bounding sphere (a sphere
+# geom's own surface) is cast whatever the rounding of the angles. Casting a beam too many costs a
+# little time, never a different range.
+_DISC_MARGIN = 1e-6
+
+
+# Compiled at import from numba's on-disk cache, as gridcast._cast (explicit signature).
+@numba.njit(
+    "i8(f8[:, ::1], f8[::1], i4[::1], i8, f8[::1], f8, f8, f8, f8[::1], f8[::1], u1[::1], i8[::1], f8[:, ::1])",
+    cache=True, nogil=True,
+)
+def _beams_to_cast(geom_xpos, geom_rbound, geom_bodyid, exclude, pnt, first_angle, increment, max_range,
+                   cos, sin, cast, index, vec):  # pragma: no cover - compiled
+    """Which beams can hit a geom of the scene: their indices into `index[:count]` and their directions
+    into `vec[:count]`; returns `count`. Beam i points at `first_angle + i * increment` rad, lies in the
+    plane z = pnt[2] and ends at `max_range` m. Geoms of body `exclude` are skipped; a geom with
+    geom_rbound 0 (a plane: MuJoCo's convention for unbounded), a lidar inside a geom's disc and a
+    single beam (increment 0) get every beam."""
+    n = cos.shape[0]
+    cast[:] = 0
+    every = increment <= 0.0
+    for g in range(0 if every else geom_xpos.shape[0]):
+        if geom_bodyid[g] == exclude:
+            continue
+        rbound = geom_rbound[g]
+        if rbound <= 0.0:
+            every = True
+            break
+        dz = geom_xpos[g, 2] - pnt[2]
+        if abs(dz) > rbound + _DISC_MARGIN:
+            continue  # the bounding sphere does not reach the beam plane (a drone above the robots)
+        radius = math.sqrt(max(rbound * rbound - dz * dz, 0.0)) + _DISC_MARGIN  # of the disc in the plane
+        dx = geom_xpos[g, 0] - pnt[0]
+        dy = geom_xpos[g, 1] - pnt[1]
+        dist = math.sqrt(dx * dx + dy * dy)
+        if dist - radius > max_range:
+            continue  # beyond the beams' reach
+        if dist <= radius:
+            every = True  # the lidar is inside the disc: any beam may hit
+            break
+        half = math.asin(radius / dist)
+        centre = (math.atan2(dy, dx) - first_angle) % (2.0 * math.pi)  # from the first beam, in [0, 2 pi)
+        for turn in (-2.0 * math.pi, 0.0, 2.0 * math.pi):  # the disc's interval may wrap past either end
+            lo = math.ceil((centre - half + turn) / increment)
+            hi = math.floor((centre + half + turn) / increment)
+            for i in range(max(lo, 0), min(hi, n - 1) + 1):
+                cast[i] = 1
+    count = 0
+    for i in range(n):
+        if every or cast[i]:
+            index[count] = i
+            vec[count, 0] = cos[i]
+            vec[count, 1] = sin[i]
+            vec[count, 2] = 0.0
+            count += 1
+    return count
+
+
+@numba.njit("void(f8[::1], i8[::1], f8[::1], i8)", cache=True, nogil=True)
+def _nearer(ranges, index, dist, count):  # pragma: no cover - compiled
+    """ranges[index[j]] = dist[j] where MuJoCo's beam j hit (dist >= 0) nearer than the wall."""
+    for j in range(count):
+        d = dist[j]
+        if d >= 0.0 and d < ranges[index[j]]:
+            ranges[index[j]] = d
