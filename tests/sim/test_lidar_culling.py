@@ -170,3 +170,14 @@ def test_only_the_beams_that_can_reach_a_body_are_cast(world: World, monkeypatch
     scan = lidar.sweep(0.0, origin)
     assert scan.ranges[341] == pytest.approx(1.0 - mjcf.CHASSIS_RADIUS, abs=1e-6)
     assert len(casts) == 1 and 0 < casts[0] < 100
+
+
+def test_a_sweep_from_the_last_pose_again_still_sees_the_others_move(world: World) -> None:
+    """A lidar keeps its last pose's wall ranges; what moves is cast afresh, and a new pose recasts all."""
+    config = LidarConfig()
+    lidar = Lidar(world._lidar_scene, world.bodies["a"].body_id, config, np.random.default_rng(0))
+    here, there = Pose2D(9.0, 4.6, 0.0), Pose2D(2.0, 4.6, 0.3)
+    for origin, others in [(here, [(0.0, 1.0, 0.0)]), (here, [(0.2, 2.0, 0.0)]), (there, [(0.0, 1.0, 0.0)]),
+                           (Pose2D(2.0, 4.6, 1.3), []), (Pose2D(2.5, 4.6, 1.3), []), (here, [])]:
+        _case(world, origin, others)
+        assert np.array_equal(lidar.sweep(0.0, origin).ranges, _every_beam(world, "a", config, origin)), origin

@@ -203,6 +203,9 @@ class Lidar:
         self._cos = np.zeros(n)
         self._sin = np.zeros(n)
         self._wall_dist = np.full(n, np.inf)
+        #: (x, y, yaw) of the last sweep, whose cos, sin and wall ranges are kept: a robot standing still
+        #: (a third of the sweeps in the follow scenario) sweeps from the very same pose again.
+        self._last_pose: tuple[float, float, float] | None = None
         # The beams cast in MuJoCo this sweep: their indices, directions (z stays 0) and results.
         self._cast = np.zeros(n, dtype=np.uint8)  # scratch: 1 where a beam is cast
         self._cast_index = np.zeros(n, dtype=np.intp)
@@ -215,11 +218,15 @@ class Lidar:
         cfg = self.config
         scene = self._scene
         cos, sin = self._cos, self._sin
-        world_angles = self._angles + origin.yaw
-        np.cos(world_angles, out=cos)
-        np.sin(world_angles, out=sin)
-        if self._sees_walls:
-            scene.walls.cast(origin.x, origin.y, cos, sin, cfg.range_max, self._wall_dist)
+        pose = (origin.x, origin.y, origin.yaw)
+        if pose != self._last_pose:  # else the beams and the walls' ranges are those of the last sweep
+            if self._last_pose is None or origin.yaw != self._last_pose[2]:
+                world_angles = self._angles + origin.yaw
+                np.cos(world_angles, out=cos)
+                np.sin(world_angles, out=sin)
+            if self._sees_walls:
+                scene.walls.cast(origin.x, origin.y, cos, sin, cfg.range_max, self._wall_dist)
+            self._last_pose = pose
         ranges = self._wall_dist.copy()
         self._pnt[0] = origin.x
         self._pnt[1] = origin.y
