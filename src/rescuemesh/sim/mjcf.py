@@ -3,10 +3,12 @@
 Owns: robot dimensions and masses, contact filtering, geom groups, solver options, element names.
 Must not know: how the world is stepped, sensed or commanded (see world.py, body.py, lidar.py).
 
-Contact filtering (contype/conaffinity bits): bit 1 = ground contacts (wheels and casters against
-the floor), bit 2 = body contacts (chassis against walls and other chassis). So wheels and casters
-never touch walls or each other, and a chassis never touches the floor: the only chassis contacts
-are collisions. Geom group 3 holds the floor, wheels and casters; the lidar masks it off.
+Contacts: each tyre and caster touches the floor through an explicit <pair> and nothing else (their
+contype and conaffinity are 0, so the collision broadphase never looks at them). Filtering
+(contype/conaffinity bits) covers the rest: bit 1 = the floor (for flyers), bit 2 = body contacts
+(chassis against walls and other chassis). So wheels and casters never touch walls or each other, and
+a chassis never touches the floor: the only chassis contacts are collisions. Geom group 3 holds the
+floor, wheels and casters; the lidar masks it off.
 Bit 4 = tops (a TurtleBot's top plate, touched only by what lands on it) and bit 8 = flyers (see
 quadrotor.py: a drone touches the floor, walls, chassis, tops and other drones through FLYER_CONTYPE).
 Other parts (quadrotors) come in as `Part`s of MJCF text, so this module need not know them.
@@ -44,7 +46,12 @@ WHEEL_KV = 0.6  # N m per rad/s
 WHEEL_MAX_TORQUE = 0.25  # N m
 WHEEL_FRICTION = 1.0  # sliding friction coefficient of the tyres on the floor
 WHEEL_ARMATURE = 0.0005  # kg m^2, reflected inertia of motor and gearbox at the wheel
-WHEEL_SOLREF = (0.01, 1.0)  # tyre contact time constant in s and damping ratio
+# Tyre-floor contact: time constant in s and damping ratio. Until the explicit <pair>s, MuJoCo mixed the
+# tyre geom's (0.01, 1) with the floor's default (0.02, 1) by their solmix-weighted mean (MuJoCo docs,
+# Computation > Contact parameters), so every run drove on (0.015, 1); the pair keeps that value.
+WHEEL_SOLREF = (0.015, 1.0)
+# Casters: frictionless (condim 1) with MuJoCo's default solref, as they were with priority="1".
+CASTER_SOLREF = (0.02, 1.0)
 
 # Forward RGB camera (sim/camera.py; docs/sensors.md). A TurtleBot 2 carries a Kinect (57 x 43 deg,
 # Microsoft "Kinect for Windows Sensor Components and Specifications") or an Orbbec Astra (60 x 49.5
@@ -92,6 +99,16 @@ def chassis_name(robot: str) -> str:
 def wheel_name(robot: str, side: str) -> str:
     """Name of the wheel joint and of its actuator; side is 'left' or 'right'."""
     return f"{robot}/wheel_{side}"
+
+
+def tyre_name(robot: str, side: str) -> str:
+    """Name of a wheel's tyre geom; side is 'left' or 'right'."""
+    return f"{robot}/tyre_{side}"
+
+
+def caster_name(robot: str, where: str) -> str:
+    """Name of a caster geom; where is 'front' or 'back'."""
+    return f"{robot}/caster_{where}"
 
 
 def bump_sensor_name(robot: str) -> str:
@@ -145,6 +162,14 @@ def world_xml(map_model: MapModel, starts: Mapping[str, Pose2D], physics_dt: flo
         for s in ("left", "right")
     )
     actuators = "\n".join([actuators] + [p.actuators for p in parts if p.actuators])
+    # Tyre friction: sliding in both tangent directions, then MuJoCo's default torsional and rolling
+    # (unused at condim 3). MuJoCo takes explicit pairs as given, without mixing the geoms' parameters.
+    tyre = f'condim="3" friction="{_f(WHEEL_FRICTION, WHEEL_FRICTION, 0.005, 0.0001, 0.0001)}" solref="{_f(*WHEEL_SOLREF)}"'
+    caster = f'condim="1" solref="{_f(*CASTER_SOLREF)}"'
+    pairs = "\n".join(
+        [f'    <pair geom1="floor" geom2={quoteattr(tyre_name(n, s))} {tyre}/>' for n in starts for s in ("left", "right")]
+        + [f'    <pair geom1="floor" geom2={quoteattr(caster_name(n, w))} {caster}/>' for n in starts for w in ("front", "back")]
+    )
     sensors = "\n".join(
         f'    <contact name={quoteattr(bump_sensor_name(n))} geom1={quoteattr(chassis_name(n))} data="found" num="1"/>'
         for n in starts
@@ -159,7 +184,7 @@ def world_xml(map_model: MapModel, starts: Mapping[str, Pose2D], physics_dt: flo
       <geom type="box" contype="0" conaffinity="{_BODY_BIT}" group="1" rgba="0.75 0.72 0.68 1"/>
     </default>
     <default class="ground">
-      <geom contype="{_GROUND_BIT}" conaffinity="0" group="{_HIDDEN_GROUP}" rgba="0.1 0.1 0.1 1"/>
+      <geom contype="0" conaffinity="0" group="{_HIDDEN_GROUP}" rgba="0.1 0.1 0.1 1"/>
     </default>
   </default>
   <asset>
@@ -179,6 +204,9 @@ def world_xml(map_model: MapModel, starts: Mapping[str, Pose2D], physics_dt: flo
 {walls}
 {robots}
   </worldbody>
+  <contact>
+{pairs}
+  </contact>
   <actuator>
 {actuators}
   </actuator>
@@ -200,14 +228,14 @@ def _robot_xml(name: str, pose: Pose2D) -> str:
     wheels = "\n".join(
         f"""      <body name={quoteattr(wheel_name(name, side))} pos="{_f(0.0, sign * WHEEL_SEPARATION / 2, 0.0)}">
         <joint name={quoteattr(wheel_name(name, side))} type="hinge" axis="0 1 0" armature="{WHEEL_ARMATURE}"/>
-        <geom class="ground" type="sphere" size="{WHEEL_RADIUS}" mass="{WHEEL_MASS}" condim="3"
-              friction="{WHEEL_FRICTION} 0.005 0.0001" solref="{_f(*WHEEL_SOLREF)}"/>
+        <geom name={quoteattr(tyre_name(name, side))} class="ground" type="sphere" size="{WHEEL_RADIUS}"
+              mass="{WHEEL_MASS}"/>
       </body>"""
         for side, sign in (("left", 1.0), ("right", -1.0))
     )
     casters = "\n".join(
-        f'      <geom name={quoteattr(f"{name}/caster_{where}")} class="ground" type="sphere" size="{CASTER_RADIUS}"'
-        f' pos="{_f(sign * CASTER_OFFSET, 0.0, caster_z)}" mass="0" priority="1" condim="1"/>'
+        f'      <geom name={quoteattr(caster_name(name, where))} class="ground" type="sphere" size="{CASTER_RADIUS}"'
+        f' pos="{_f(sign * CASTER_OFFSET, 0.0, caster_z)}" mass="0"/>'
         for where, sign in (("front", 1.0), ("back", -1.0))
     )
     # The top plate: touched only by flyers (TOP_BIT); three standoffs that touch nothing. All above the
