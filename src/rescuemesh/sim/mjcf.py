@@ -175,10 +175,16 @@ def world_xml(map_model: MapModel, starts: Mapping[str, Pose2D], physics_dt: flo
         for n in starts
     )
     sensors = "\n".join([sensors] + [p.bump for p in parts if p.bump] + [p.sensors for p in parts if p.sensors])
+    # Solver: Newton on the whole system, not island by island (<flag island="disable"/>). The
+    # islands are independent blocks of the same problem, so the solution is the same to the solver
+    # tolerance, but finding them each step cost more than it saved: mj_step 15-20 % dearer with 10
+    # to 30 robots, the same with 3 (measured with MuJoCo 4.0 on the office, issue 8).
     return f"""<mujoco model={quoteattr(map_model.name)}>
   <compiler angle="radian" autolimits="true"/>
   <option timestep="{physics_dt!r}" integrator="implicitfast" cone="pyramidal" solver="Newton"
-          iterations="20" ls_iterations="8" tolerance="1e-8"/>
+          iterations="20" ls_iterations="8" tolerance="1e-8">
+    <flag island="disable"/>
+  </option>
   <default>
     <default class="wall">
       <geom type="box" contype="0" conaffinity="{_BODY_BIT}" group="1" rgba="0.75 0.72 0.68 1"/>
