@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import abc
 import enum
+import functools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -48,9 +50,20 @@ class LaserScan:
     def points_in_map(self) -> np.ndarray:
         """(N, 2) map-frame points of the finite returns within [range_min, range_max]."""
         r = self.ranges
-        ok = np.isfinite(r) & (r >= self.range_min) & (r <= self.range_max)
-        a = self.angles()[ok] + self.origin.yaw
-        return np.stack([self.origin.x + r[ok] * np.cos(a), self.origin.y + r[ok] * np.sin(a)], axis=1)
+        ok = (r >= self.range_min) & (r <= self.range_max)  # False for nan, and for inf below a finite range_max
+        if not math.isfinite(self.range_max):
+            ok &= np.isfinite(r)
+        r = r[ok]
+        a = _beam_angles(self.angle_min, self.angle_increment, len(ok))[ok] + self.origin.yaw
+        return np.stack([self.origin.x + r * np.cos(a), self.origin.y + r * np.sin(a)], axis=1)
+
+
+@functools.lru_cache(maxsize=16)
+def _beam_angles(angle_min: float, angle_increment: float, n: int) -> np.ndarray:
+    """`LaserScan.angles()` of a sweep of `n` beams, kept read-only: every sweep of a lidar has the same."""
+    a = angle_min + angle_increment * np.arange(n)
+    a.flags.writeable = False
+    return a
 
 
 class NoRendererError(RuntimeError):

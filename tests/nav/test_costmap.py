@@ -120,3 +120,19 @@ def test_a_window_of_costs_is_the_stamped_map_there_without_stamping_the_map(roo
         assert [lazy.cost_at(x, y) for x, y in xy] == [float(v) for v in full[rr, cc]]
         assert lazy._cost is None
         np.testing.assert_array_equal(lazy.costs_at(np.array([[0.1, 0.1], [5.9, 3.9]])), full[[2, 78], [2, 118]])
+
+
+def test_the_obstacle_layer_keeps_the_points_off_static_walls_outside_the_clear_radius(room_costmap):
+    # with_obstacles runs on every scan: its shortcuts keep what the plain rules keep, in order
+    rng = np.random.default_rng(11)
+    for trial in range(30):
+        pts = rng.uniform((-0.5, -0.5), (6.5, 4.5), size=(int(rng.integers(0, 300)), 2))
+        centre, radius = tuple(rng.uniform((0.0, 0.0), (6.0, 4.0))), float(rng.choice([0.0, 0.5, 2.0]))
+        cm = room_costmap.with_obstacles(pts, float(trial), clear_center=centre, clear_radius=radius)
+        far = np.hypot(pts[:, 0] - centre[0], pts[:, 1] - centre[1]) > radius if radius > 0.0 else np.ones(len(pts), bool)
+        rows, cols, inside = room_costmap.cells_of(pts)
+        keep = far & inside
+        keep[keep] = room_costmap.static_clearance[rows[keep], cols[keep]] >= 1.5 * room_costmap.resolution
+        np.testing.assert_array_equal(cm.obstacle_points, pts[keep])
+        np.testing.assert_array_equal(cm.obstacle_cells, np.unique(rows[keep] * room_costmap.shape[1] + cols[keep]))
+        assert (cm.cost is room_costmap.static_cost) == (not keep.any())

@@ -84,6 +84,8 @@ class Costmap:
         self._cost = self.static_cost
         self._lethal = self._static_lethal = self.static_cost >= LETHAL
         self._window: tuple[tuple[int, int, int, int], np.ndarray] | None = None  # the last `cost_in` stamped
+        # flat: cells where a scan point is an obstacle of its own (not on or next to a static one)
+        self._stampable = (self.static_clearance >= 1.5 * self.resolution).reshape(-1)
         self._obstacle_cells = np.zeros(0, dtype=np.int64)
         self.obstacle_points = np.zeros((0, 2))
         self.obstacle_stamp: float | None = None
@@ -203,20 +205,29 @@ class Costmap:
         layer and skipped. `now` (s) is kept as `obstacle_stamp`.
         """
         pts = np.asarray(points, dtype=float).reshape(-1, 2)
-        if clear_center is not None and clear_radius > 0.0 and len(pts):
-            far = np.hypot(pts[:, 0] - clear_center[0], pts[:, 1] - clear_center[1]) > clear_radius
-            pts = pts[far]
         out = object.__new__(Costmap)
         out.__dict__.update(self.__dict__)
         out.obstacle_stamp = now
-        rows, cols, inside = self.cells_of(pts)
-        keep = inside.copy()
-        keep[inside] = self.static_clearance[rows[inside], cols[inside]] >= 1.5 * self.resolution
+        # this runs for every scan, mostly on points of static walls: the cheap tests first, in
+        # few numpy calls (cells_of's floors compared as floats), the clear radius on the rest
+        h, w = self.shape
+        rows = np.floor((pts[:, 1] - self.grid.origin_y) / self.resolution)
+        cols = np.floor((pts[:, 0] - self.grid.origin_x) / self.resolution)
+        keep = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+        flat = (rows[keep] * w + cols[keep]).astype(np.int64)
+        stampable = self._stampable[flat]
+        keep[keep] = stampable
+        flat = flat[stampable]
+        if clear_center is not None and clear_radius > 0.0 and len(flat):
+            near = pts[keep]
+            far = np.hypot(near[:, 0] - clear_center[0], near[:, 1] - clear_center[1]) > clear_radius
+            keep[keep] = far
+            flat = flat[far]
         out.obstacle_points = pts[keep]
         out._cost = out._lethal = None  # built on first use: a blocked-path check does not need them
         out._window = None
-        out._obstacle_cells = np.unique(rows[keep] * self.shape[1] + cols[keep])
-        if not keep.any():
+        out._obstacle_cells = np.unique(flat)
+        if len(flat) == 0:
             out._cost, out._lethal = self.static_cost, self._static_lethal
         return out
 
