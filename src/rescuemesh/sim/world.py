@@ -126,8 +126,7 @@ class World:
         self._odom_every = max(1, round(ODOMETRY_PERIOD_S / self.physics_dt))
         self._gap_steps = max(1, round(COLLISION_GAP_S / self.physics_dt))
         self._collisions = [0] * len(names)  # indexed like self._bump
-        self._in_episode = [False] * len(names)
-        self._last_touch = [0] * len(names)
+        self._open: dict[int, int] = {}  # open collision episodes: index like self._bump -> step of the last touch
         self._any_episode = False
 
         mujoco.mj_forward(self.model, self.data)
@@ -234,17 +233,19 @@ class World:
                 self._update_episodes()
 
     def _update_episodes(self) -> None:
-        any_open = False
-        for i, touching in enumerate(self._bump > 0.0):
-            if touching:
-                if not self._in_episode[i]:
-                    self._in_episode[i] = True
-                    self._collisions[i] += 1
-                self._last_touch[i] = self._steps
-            elif self._in_episode[i] and self._steps - self._last_touch[i] >= self._gap_steps:
-                self._in_episode[i] = False
-            any_open = any_open or self._in_episode[i]
-        self._any_episode = any_open
+        """Open an episode for every chassis touching now and not in one; close those free for the gap.
+
+        Visits only the touching chassis and the open episodes (a few), not every robot: with many
+        robots this runs every physics step while any episode is open.
+        """
+        steps, episodes = self._steps, self._open
+        for i in np.flatnonzero(self._bump).tolist():
+            if i not in episodes:
+                self._collisions[i] += 1
+            episodes[i] = steps
+        for i in [i for i, last in episodes.items() if steps - last >= self._gap_steps]:
+            del episodes[i]
+        self._any_episode = bool(episodes)
 
     def _sweep(self) -> None:
         """One lidar sweep per robot at the current time (kinematics refreshed for current qpos)."""
