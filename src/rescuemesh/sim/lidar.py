@@ -200,6 +200,7 @@ class Lidar:
         self._groups = np.array(LIDAR_GEOM_GROUPS, dtype=np.uint8)
         self._sees_walls = 0.0 <= config.height <= scene.walls.wall_height
         self._pnt = np.zeros(3)
+        self._world_angles = np.zeros(n)
         self._cos = np.zeros(n)
         self._sin = np.zeros(n)
         self._wall_dist = np.full(n, np.inf)
@@ -221,13 +222,12 @@ class Lidar:
         pose = (origin.x, origin.y, origin.yaw)
         if pose != self._last_pose:  # else the beams and the walls' ranges are those of the last sweep
             if self._last_pose is None or origin.yaw != self._last_pose[2]:
-                world_angles = self._angles + origin.yaw
+                world_angles = np.add(self._angles, origin.yaw, out=self._world_angles)
                 np.cos(world_angles, out=cos)
                 np.sin(world_angles, out=sin)
             if self._sees_walls:
                 scene.walls.cast(origin.x, origin.y, cos, sin, cfg.range_max, self._wall_dist)
             self._last_pose = pose
-        ranges = self._wall_dist.copy()
         self._pnt[0] = origin.x
         self._pnt[1] = origin.y
         self._pnt[2] = cfg.height
@@ -236,7 +236,7 @@ class Lidar:
             cfg.angle_min + origin.yaw, cfg.angle_increment, cfg.range_max, cos, sin, self._cast, self._cast_index,
             self._cast_vec,
         )
-        if count:
+        if count:  # else every beam's MuJoCo cast would have read no return
             mujoco.mj_multiRay(
                 scene.model,
                 scene.data,
@@ -251,8 +251,8 @@ class Lidar:
                 count,
                 cfg.range_max,
             )
-            _nearer(ranges, self._cast_index, self._dist, count)
-        ranges[ranges > cfg.range_max] = np.inf
+        ranges = np.empty(cfg.beams)
+        _nearer(self._wall_dist, self._cast_index, self._dist, count, cfg.range_max, ranges)
         if cfg.noise_std > 0.0:
             hit = np.isfinite(ranges)
             ranges[hit] += self._rng.normal(0.0, cfg.noise_std, int(hit.sum()))
@@ -327,10 +327,14 @@ def _beams_to_cast(geom_xpos, geom_rbound, geom_bodyid, exclude, pnt, first_angl
     return count
 
 
-@numba.njit("void(f8[::1], i8[::1], f8[::1], i8)", cache=True, nogil=True)
-def _nearer(ranges, index, dist, count):  # pragma: no cover - compiled
-    """ranges[index[j]] = dist[j] where MuJoCo's beam j hit (dist >= 0) nearer than the wall."""
+@numba.njit("void(f8[::1], i8[::1], f8[::1], i8, f8, f8[::1])", cache=True, nogil=True)
+def _nearer(wall, index, dist, count, max_range, ranges):  # pragma: no cover - compiled
+    """ranges[i]: the nearer of the wall's range `wall[i]` and MuJoCo's `dist[j]` for beam i = index[j]
+    (j < count; dist < 0: no hit), inf beyond `max_range` m."""
+    for i in range(wall.shape[0]):
+        w = wall[i]
+        ranges[i] = w if w <= max_range else math.inf
     for j in range(count):
         d = dist[j]
-        if d >= 0.0 and d < ranges[index[j]]:
+        if 0.0 <= d <= max_range and d < ranges[index[j]]:
             ranges[index[j]] = d
