@@ -239,7 +239,12 @@ def settled(rt: SimRuntime, name: str, since_s: float) -> bool:
     now = rt.time
     if now - since_s < SETTLE_S:
         return False
-    return all(s.speed < SETTLED_SPEED for s in rt.trajectories[name] if s.time_s >= now - SETTLE_S)
+    for sample in reversed(rt.trajectories[name]):  # newest first: only the last SETTLE_S s matter
+        if sample.time_s < now - SETTLE_S:
+            return True
+        if sample.speed >= SETTLED_SPEED:
+            return False
+    return True
 
 
 def no_collisions(rt: SimRuntime) -> tuple[str, bool]:
