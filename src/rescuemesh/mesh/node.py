@@ -23,6 +23,9 @@ the relay decision and the outbox; must not know radios, clocks, random numbers 
 #      Mesh Profile 4.2.20: a receiver's cache drops the copies it already has);
 #      TTL < 2 -> dropped_ttl.
 #
+# Steps 1-2 (reader.py) remember the frames they read recently by the bytes heard, so a copy that
+# is the same bytes (Relay Retransmit copies, two relays re-sealing one frame) skips AES-CCM.
+#
 # Relay suppression (counter-based, Ni et al. 1999; outbox.py): step-3 hits on a frame whose copies
 # wait in the outbox are counted; at relay_suppress_after they are cancelled (not those handed out).
 #
@@ -51,8 +54,6 @@ from dataclasses import dataclass
 
 from rescuemesh.protocol import (
     BROADCAST,
-    FRAME_OVERHEAD_BYTES,
-    MAX_EPOCH,
     MAX_CONTROL_FRAME_BYTES,
     MAX_SEQ,
     MAX_TTL,
@@ -61,7 +62,6 @@ from rescuemesh.protocol import (
     FrameError,
     FrameFlags,
     Header,
-    IntegrityError,
     MessageType,
     SegmentAck,
     decode_frame,
@@ -71,9 +71,10 @@ from rescuemesh.protocol import (
 from .cache import NetworkCache
 from .config import MeshConfig
 from .events import FrameDelivered, MeshEvent, PeerRestarted
-from .frames import ATTEMPT_SHIFT, TTL_MASK, FrameKind, FrameView, cache_key, read_logical, read_on_air, with_ttl
+from .frames import ATTEMPT_SHIFT, TTL_MASK, FrameKind, FrameView, read_logical, with_ttl
 from .neighbours import NeighbourInfo, NeighbourTable
 from .outbox import Outbox
+from .reader import FrameReader
 from .reassembly import SarReceiver
 from .replay import ReplayVerdict, ReplayWindow
 from .sar import SarSender
@@ -82,11 +83,8 @@ from .stats import MeshStats
 
 #: Segmented frames whose epoch the node remembers (a transfer is numbered in one epoch).
 _MAX_TX_EPOCHS = 64
-AUTH_BIT = 0x20  # byte 0, bit 5 (docs/protocol.md section 2)
 _HEARTBEAT_BYTES = 17  # 6 header + active_command + init_ttl + epoch (4) + capabilities + 4 CRC
 _HEARTBEAT_INIT_TTL_BYTE = 7
-#: FrameError subclass -> the counter it increments (any other: dropped_malformed).
-_DROP_COUNTER: dict[type, str] = {IntegrityError: "dropped_corrupt"}
 
 
 @dataclass(frozen=True, slots=True)
@@ -132,6 +130,7 @@ class MeshNode:
         self.number = self._own_number
         self.stats = MeshStats()
         self._cache = NetworkCache(self.config.cache_size, self.config.cache_lifetime_s)
+        self._reader = FrameReader(address, sealer, self._replay, self.stats)
         self._neighbours = NeighbourTable(self.config)
         self._events: deque[MeshEvent] = deque()
         self._outbox: Outbox[Transmission] = Outbox(self.config.relay_suppress_after, self.config.relay_pace_s,
@@ -197,22 +196,10 @@ class MeshNode:
                 and not self._outbox.holds_relays():  # step 0
             stats.dropped_passing += 1
             return
-        if self.sealer is not None:
-            data = self._open(data)
-            if data is None:
-                return
-        try:
-            view = read_on_air(data)
-        except FrameError as exc:
-            name = _DROP_COUNTER.get(type(exc), "dropped_malformed")
-            setattr(stats, name, getattr(stats, name) + 1)
+        read = self._reader.read(data)
+        if read is None:
             return
-        if view.src == self.address:
-            stats.dropped_own += 1
-            return
-        key = cache_key(data)
-        if self.sealer is not None:  # a rebooted source's frame may repeat an old one but for its epoch
-            key = self._rx_epoch.to_bytes(4, "big") + key
+        data, view, key, self._rx_epoch = read
         # a frame whose relayed copies still wait here is a duplicate even if its cache entry expired
         if not self._cache.check_and_add(key, now) or self._outbox.waiting(key):
             stats.dropped_cached += 1
@@ -361,35 +348,6 @@ class MeshNode:
 
     def _seal(self, frame: bytes, epoch: int) -> bytes:
         return frame if self.sealer is None else self.sealer.seal(frame, epoch)
-
-    def _open(self, data: bytes) -> bytes | None:
-        """The CRC frame inside an authenticated one, or None (counted) if it does not open."""
-        stats = self.stats
-        if len(data) < FRAME_OVERHEAD_BYTES or not data[0] & AUTH_BIT:
-            stats.dropped_unauthenticated += 1
-            return None
-        src = data[2]
-        if src == self.address:
-            stats.dropped_own += 1
-            return None
-        announced = self.sealer.heartbeat_epoch(data)
-        if announced is not None:
-            candidates = (announced,)
-        else:
-            known = self._replay.epoch_of(src)
-            if known is None:
-                stats.dropped_unknown_epoch += 1
-                return None
-            candidates = (known, (known + 1) & MAX_EPOCH)  # the source may have wrapped since
-        for epoch in candidates:
-            try:
-                opened = self.sealer.open(data, epoch)
-            except FrameError:
-                continue
-            self._rx_epoch = epoch
-            return opened
-        stats.dropped_forged += 1
-        return None
 
 
 def _announced_init_ttl(data: bytes, view: FrameView) -> int | None:
