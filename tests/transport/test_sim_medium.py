@@ -209,3 +209,45 @@ def test_events_collide_only_when_their_pdus_share_a_channel(offset_s, collide):
     stacks[2].outbox.append(Tx(b"b" * 20, 2, 3))
     medium.pump(0.1)
     assert (medium.stats.collisions == 2) is collide and len(stacks[3].heard) == (0 if collide else 2)
+
+
+class DroppingStack(FakeStack):
+    """A stack that drops every frame it hears (receive says False), perhaps moving its timer later
+    (`timer_after_drop`), and counts the medium's asks for transmissions."""
+
+    asked: int = 0
+    timer_after_drop: float | None = None
+
+    def receive(self, data, now, *, rssi_dbm=None, relay_delay_s=0.0):
+        super().receive(data, now, rssi_dbm=rssi_dbm, relay_delay_s=relay_delay_s)
+        if self.timer_after_drop is not None:
+            self.timer = self.timer_after_drop
+        return False
+
+    def transmissions(self, now):
+        self.asked += 1
+        return super().transmissions(now)
+
+
+def test_a_stack_that_dropped_a_frame_is_not_asked():
+    medium = SimMedium(DiscChannel(), 7, timing=NO_JITTER)
+    sender, dropper = FakeStack(1), DroppingStack(2)
+    medium.attach(1, sender, lambda: (0, 0))
+    medium.attach(2, dropper, lambda: (3, 0))
+    for k in range(5):
+        sender.outbox.append(Tx(bytes([k]) * 20, 1, 2, seq=k))
+    medium.pump(1.0)
+    assert len(dropper.heard) == 5 and dropper.asked == 1  # the pump's flush only
+
+
+def test_a_timer_moved_later_by_a_dropped_frame_still_fires_at_its_new_time():
+    medium = SimMedium(DiscChannel(), 7, timing=NO_JITTER)
+    sender, dropper = FakeStack(1), DroppingStack(2)
+    medium.attach(1, sender, lambda: (0, 0))
+    medium.attach(2, dropper, lambda: (3, 0))
+    dropper.timer = 0.5
+    medium.pump(0.0)  # the medium has read the timer: 0.5
+    dropper.timer_after_drop = 0.8
+    sender.outbox.append(Tx(b"a" * 20, 1, 2))
+    medium.pump(2.0)  # the frame arrives at ~1 ms and moves the timer; no flush in between
+    assert len(dropper.heard) == 1 and dropper.fired == [0.8]

@@ -51,10 +51,13 @@ class NetworkStack:
 
     # --- the transport's side ------------------------------------------------------------------
 
-    def receive(self, data: bytes, now: float, *, rssi_dbm: float | None = None, relay_delay_s: float = 0.0) -> None:
-        """A frame heard on the air (never raises for any bytes)."""
-        self.node.receive(data, now, rssi_dbm=rssi_dbm, relay_delay_s=relay_delay_s)
-        self._drain()
+    def receive(self, data: bytes, now: float, *, rssi_dbm: float | None = None, relay_delay_s: float = 0.0) -> bool:
+        """A frame heard on the air (never raises for any bytes). False when the mesh node dropped
+        it: then there is nothing new to send and no earlier timer (see MeshNode.receive)."""
+        accepted = self.node.receive(data, now, rssi_dbm=rssi_dbm, relay_delay_s=relay_delay_s)
+        if accepted:
+            self._drain()
+        return accepted
 
     def transmissions(self, now: float) -> list[Transmission]:
         """What to put on the air now: the endpoint's new frames (segmented as needed), relays."""

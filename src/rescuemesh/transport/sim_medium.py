@@ -15,21 +15,25 @@ metadata the mesh layer attaches to each Transmission, never the bytes), robots,
 #   TX_START  a radio starts its next queued frame. The frame occupies the air for the channel's
 #             airtime (a legacy advertisement on the three advertising channels, about 1.1 ms).
 #             For every other radio that can hear it at all (channel.audible), a reception is
-#             opened over [start, end] with the channel's verdict for that frame (fading, PER).
+#             opened over [start, end] with the channel's verdict for that frame (fading, PER):
+#             together they are the frame's "burst".
 #             Receptions that overlap at one receiver collide: each is lost unless it is stronger
 #             than the other by the co-channel rejection ratio (capture). Every advertiser sends
 #             its three PDUs on channels 37, 38, 39 in that order and a scanner listens on one
 #             channel, so two events collide only when their starts are closer than one PDU (a
 #             third of the event); events further apart meet on different channels. A radio that
 #             transmits cannot receive at all during its event (half duplex).
-#   ARRIVAL   a reception ends: if nothing spoiled it and the extra --loss draw passes, the
-#             receiver's stack gets the bytes (with the RSSI and a random relay delay drawn here,
-#             since the sans-IO mesh layer draws no random numbers).
+#   ARRIVAL   a burst ends: at each radio where nothing spoiled it and the extra --loss draw
+#             passes, the stack gets the bytes (with the RSSI and a random relay delay drawn here,
+#             since the sans-IO mesh layer draws no random numbers), in the order radios attached.
+#             One heap event per frame, not one per reception: a team of 30 hears 29 of each.
 #   TIMER     a stack's timer is due (resends, segments, relays, neighbour expiry).
 #
 # After any call into a stack, its new transmissions are queued on its radio and its timer is
-# re-read and pushed on the heap if it changed (stale heap entries are skipped when popped): no
-# scan of every stack per event. A radio starts a frame at max(now, previous start + advertising
+# re-read and pushed on the heap if it changed: no scan of every stack per event. A stack whose
+# receive() says False dropped the frame (most frames a team of 30 hears are copies) and is not
+# asked: its timer can only have moved later, so a heap entry that comes due early re-reads the
+# timer and pushes the new one. A radio starts a frame at max(now, previous start + advertising
 # interval) + advDelay, as a BLE advertiser does (Core Vol 6 Part B 4.4.2.2.1).
 #
 # Randomness: advDelay and relay delays come from a stream per radio; fading and PER draws from a
@@ -49,7 +53,7 @@ from typing import Protocol
 import numpy as np
 
 from rescuemesh.protocol import BROADCAST
-from rescuemesh.radio import ChannelModel, LossCause, Reception
+from rescuemesh.radio import ChannelModel, LossCause
 from rescuemesh.radio.channel import ADV_CHANNELS
 
 #: At most this many events in one pump: a runaway guard.
@@ -86,7 +90,7 @@ class NetworkStack(Protocol):
     """What the medium needs of a robot's stack (rescuemesh.mesh.NetworkStack has it)."""
 
     def receive(self, data: bytes, now: float, *, rssi_dbm: float | None = None,
-                relay_delay_s: float = 0.0) -> None: ...
+                relay_delay_s: float = 0.0) -> bool | None: ...  # False: nothing new to send, no earlier timer
     def transmissions(self, now: float) -> list: ...  # rescuemesh.mesh.Transmission
     def get_timer(self) -> float | None: ...
     def handle_timer(self, now: float) -> None: ...
@@ -176,19 +180,23 @@ class _Radio:
     tx_scheduled: bool = False
     next_allowed_s: float = float("-inf")
     on_air_until: float = float("-inf")
-    receiving: list = field(default_factory=list)
 
 
 @dataclass(slots=True)
-class _Reception:
+class _Burst:
+    """One frame on the air and its receptions: `receivers` (in attach order) could hear it, each
+    with the channel's `verdicts[k]` and what the medium has since spoiled it with, `lost[k]`;
+    `slot` maps a receiver's address to k."""
+
     transmission: object  # rescuemesh.mesh.Transmission
     sender: _Radio
-    receiver: _Radio
     start: float
     end: float
-    verdict: Reception
     record: AirRecord | None
-    lost: LossCause | None = None
+    receivers: list = field(default_factory=list)
+    verdicts: list = field(default_factory=list)
+    lost: list = field(default_factory=list)
+    slot: dict = field(default_factory=dict)
 
 
 class SimMedium:
@@ -213,6 +221,7 @@ class SimMedium:
         self._order = itertools.count()
         self._timer_at: dict[int, float] = {}
         self._pair_rngs: dict[tuple[int, int, int], np.random.Generator] = {}
+        self._bursts: list[_Burst] = []  # frames on the air or not yet arrived, in start order
         self._now = 0.0
         #: Radio positions read once per pump or flush (the world does not move inside one): a team
         #: of 30 asked each body for its pose 29 times per frame on the air.
@@ -235,9 +244,10 @@ class SimMedium:
         if not enabled:
             self.stats.dropped_radio_off += len(radio.queue)
             radio.queue.clear()
-            for reception in radio.receiving:
-                if reception.end > now:
-                    reception.lost = reception.lost or LossCause.RADIO_OFF
+            for burst in self._bursts:
+                k = burst.slot.get(address)
+                if k is not None and burst.end > now:
+                    burst.lost[k] = burst.lost[k] or LossCause.RADIO_OFF
 
     def radio_enabled(self, address: int) -> bool:
         return self._radio(address).enabled
@@ -308,7 +318,9 @@ class SimMedium:
                 radio.queue.extend(transmissions)
                 if not radio.tx_scheduled:
                     self._schedule_start(radio, now)
-        timer = radio.stack.get_timer()
+        self._arm_timer(radio, radio.stack.get_timer())
+
+    def _arm_timer(self, radio: _Radio, timer: float | None) -> None:
         if timer is not None and self._timer_at.get(radio.address) != timer:
             self._timer_at[radio.address] = timer
             self._push(max(timer, self._now), _Event.TIMER, radio)
@@ -322,7 +334,10 @@ class SimMedium:
 
     def _fire_timer(self, radio: _Radio, at: float) -> None:
         timer = radio.stack.get_timer()
-        if timer is None or timer > at:  # stale: the stack's timer moved since this was pushed
+        if timer is None or timer > at:  # stale: the stack's timer moved (later) since this was pushed
+            if self._timer_at.get(radio.address) == at:
+                del self._timer_at[radio.address]
+            self._arm_timer(radio, timer)  # a stack that dropped a frame was not asked: ask now
             return
         self._timer_at.pop(radio.address, None)
         radio.stack.handle_timer(at)
@@ -337,9 +352,11 @@ class SimMedium:
         end = start + self.channel.airtime_s(size)
         radio.next_allowed_s = start + self.timing.adv_interval_s
         radio.on_air_until = end
-        for reception in radio.receiving:  # half duplex: what it was hearing is lost
-            if reception.end > start:
-                reception.lost = reception.lost or LossCause.HALF_DUPLEX
+        self._bursts = on_air = [burst for burst in self._bursts if burst.end > start]
+        for burst in on_air:  # half duplex: what it was hearing is lost
+            k = burst.slot.get(radio.address)
+            if k is not None:
+                burst.lost[k] = burst.lost[k] or LossCause.HALF_DUPLEX
         self._count_transmission(transmission, size, end - start)
         record = None
         if self.records is not None:
@@ -347,7 +364,9 @@ class SimMedium:
                                transmission.msg_type, transmission.relayed, transmission.segment,
                                transmission.data, None if transmission.dst == BROADCAST else False)
             self.records.append(record)
+        burst = _Burst(transmission, radio, start, end, record)
         sender_xy = self._position(radio)
+        dst = transmission.dst
         for receiver in self._radios.values():
             if receiver is radio:
                 continue
@@ -356,67 +375,72 @@ class SimMedium:
                 verdict = self.channel.reception(sender_xy, self._position(receiver), size,
                                                  self._pair_rng(2, radio.address, receiver.address))
             if verdict is None or verdict.cause is LossCause.OUT_OF_RANGE:
-                if transmission.dst in (BROADCAST, receiver.address):  # only intended ones count
+                if dst == BROADCAST or dst == receiver.address:  # only intended ones count
                     cause = LossCause.RADIO_OFF if not receiver.enabled else LossCause.OUT_OF_RANGE
                     self._count_reception(transmission, receiver, cause)
                 continue
-            reception = _Reception(transmission, radio, receiver, start, end, verdict, record)
-            if receiver.on_air_until > start:
-                reception.lost = LossCause.HALF_DUPLEX
-            self._overlap(receiver, reception, start)
-            self._push(end, _Event.ARRIVAL, reception)
+            burst.slot[receiver.address] = len(burst.receivers)
+            burst.receivers.append(receiver)
+            burst.verdicts.append(verdict)
+            burst.lost.append(LossCause.HALF_DUPLEX if receiver.on_air_until > start else None)
+        if burst.receivers:
+            for other in on_air:
+                self._collide(burst, other)
+            on_air.append(burst)
+            self._push(end, _Event.ARRIVAL, burst)
         if radio.queue:
             self._schedule_start(radio, end)
 
-    def _overlap(self, receiver: _Radio, reception: _Reception, start: float) -> None:
-        """Collide `reception` with every reception at `receiver` whose PDUs share a channel with
-        it in time (starts closer than one PDU), unless one captures the receiver."""
-        still = [other for other in receiver.receiving if other.end > start]
+    def _collide(self, burst: _Burst, other: _Burst) -> None:
+        """Collide `burst` with `other`, still on the air, at every radio that hears both, if their
+        PDUs share a channel in time (starts closer than one PDU), unless one captures the radio."""
+        start = burst.start
+        if start - other.start >= max((burst.end - start) / ADV_CHANNELS, (other.end - other.start) / ADV_CHANNELS):
+            return  # their PDUs are on different channels at any instant
         capture = self.timing.capture_db
-        pdu_s = (reception.end - start) / ADV_CHANNELS
-        for other in still:
-            if start - other.start >= max(pdu_s, (other.end - other.start) / ADV_CHANNELS):
-                continue  # their PDUs are on different channels at any instant
-            if reception.verdict.rssi_dbm - other.verdict.rssi_dbm < capture:
-                reception.lost = reception.lost or LossCause.COLLISION
-            if other.verdict.rssi_dbm - reception.verdict.rssi_dbm < capture:
-                other.lost = other.lost or LossCause.COLLISION
-        still.append(reception)
-        receiver.receiving = still
+        slot, lost, verdicts = other.slot, other.lost, other.verdicts
+        for k, receiver in enumerate(burst.receivers):
+            j = slot.get(receiver.address)
+            if j is None:
+                continue
+            margin = burst.verdicts[k].rssi_dbm - verdicts[j].rssi_dbm
+            if margin < capture:
+                burst.lost[k] = burst.lost[k] or LossCause.COLLISION
+            if -margin < capture:
+                lost[j] = lost[j] or LossCause.COLLISION
 
-    def _arrive(self, reception: _Reception, at: float) -> None:
-        receiver = reception.receiver
-        lost = reception.lost
-        if lost is None and not receiver.enabled:
-            lost = LossCause.RADIO_OFF
-        if lost is None and not reception.verdict.delivered:
-            lost = reception.verdict.cause or LossCause.BIT_ERRORS
-        if lost is None and self.extra_loss > 0.0:
-            if self._pair_rng(3, reception.sender.address, receiver.address).random() < self.extra_loss:
-                lost = LossCause.EXTRA_LOSS
-        transmission = reception.transmission
-        self._count_reception(transmission, receiver, lost)
-        record = reception.record
-        if record is not None:
-            if lost is LossCause.COLLISION:
-                record.collided = True
-            if lost is None:
-                record.heard_by += 1
-                if transmission.dst == receiver.address:
-                    record.dst_heard = True
-        if lost is not None:
-            return
+    def _arrive(self, burst: _Burst, at: float) -> None:
+        transmission, sender, record = burst.transmission, burst.sender, burst.record
+        data = transmission.data
         timing = self.timing
-        relay_delay = receiver.rng.random() * timing.relay_delay_max_s if timing.relay_delay_max_s else 0.0
-        def deliver() -> None:
-            receiver.stack.receive(transmission.data, at, rssi_dbm=reception.verdict.rssi_dbm,
-                                   relay_delay_s=relay_delay)
-
-        if self.observe is None:
-            deliver()
-        else:
-            self.observe(reception.sender.address, receiver.address, transmission.data, at, deliver)
-        self._collect(receiver, at)
+        for k, receiver in enumerate(burst.receivers):
+            lost = burst.lost[k]
+            verdict = burst.verdicts[k]
+            if lost is None and not receiver.enabled:
+                lost = LossCause.RADIO_OFF
+            if lost is None and not verdict.delivered:
+                lost = verdict.cause or LossCause.BIT_ERRORS
+            if lost is None and self.extra_loss > 0.0:
+                if self._pair_rng(3, sender.address, receiver.address).random() < self.extra_loss:
+                    lost = LossCause.EXTRA_LOSS
+            self._count_reception(transmission, receiver, lost)
+            if record is not None:
+                if lost is LossCause.COLLISION:
+                    record.collided = True
+                if lost is None:
+                    record.heard_by += 1
+                    if transmission.dst == receiver.address:
+                        record.dst_heard = True
+            if lost is not None:
+                continue
+            relay_delay = receiver.rng.random() * timing.relay_delay_max_s if timing.relay_delay_max_s else 0.0
+            if self.observe is None:
+                if receiver.stack.receive(data, at, rssi_dbm=verdict.rssi_dbm, relay_delay_s=relay_delay) is False:
+                    continue  # dropped: nothing new to send, no earlier timer
+            else:
+                self.observe(sender.address, receiver.address, data, at,
+                             _delivery(receiver.stack, data, at, verdict.rssi_dbm, relay_delay))
+            self._collect(receiver, at)
 
     def _count_transmission(self, transmission, size: int, airtime_s: float) -> None:
         stats = self.stats
@@ -446,3 +470,10 @@ class SimMedium:
                 stats.unicast_delivered += 1
             else:
                 stats.unicast_lost += 1
+
+
+def _delivery(stack: NetworkStack, data: bytes, at: float, rssi: float, relay_delay: float) -> Callable[[], None]:
+    def deliver() -> None:
+        stack.receive(data, at, rssi_dbm=rssi, relay_delay_s=relay_delay)
+
+    return deliver
