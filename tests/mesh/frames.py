@@ -10,6 +10,8 @@ from rescuemesh.protocol import (
     Header,
     Heartbeat,
     MessageType,
+    Pose,
+    PoseUpdate,
     Stop,
     encode_frame,
 )
@@ -25,6 +27,12 @@ def heartbeat(src: int, seq: int, ttl: int = 7, init_ttl: int | None = None) -> 
 def stop(src: int, dst: int, seq: int, ttl: int = 7, attempt: int = 0) -> bytes:
     """A 10-byte Stop command (a control frame)."""
     return encode_frame(Header(1, FrameFlags.NONE, ttl, attempt, MessageType.STOP, src, dst, seq), Stop())
+
+
+def pose_update(src: int, dst: int, seq: int, ttl: int = 7, attempt: int = 0) -> bytes:
+    """A PoseUpdate of the leader `src` to its follower `dst`."""
+    header = Header(1, FrameFlags.NONE, ttl, attempt, MessageType.POSE_UPDATE, src, dst, seq)
+    return encode_frame(header, PoseUpdate(Pose(1.0, 2.0, 0.0, 0.5)))
 
 
 def data(src: int, dst: int, seq: int, size: int, ttl: int = 7, attempt: int = 0) -> bytes:

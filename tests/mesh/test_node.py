@@ -131,3 +131,15 @@ def test_a_fresh_node_has_no_timer_and_no_neighbours():
     node = MeshNode(1, MeshConfig())
     assert node.get_timer() is None and node.neighbours() == [] and node.next_event() is None
     assert node.hops_to(2) is None and not node.is_reachable(2, 0.0)
+
+
+def test_receive_says_whether_it_accepted_the_frame():
+    """True for a frame accepted (something may be due to send); False for one dropped, so that a
+    transport can skip asking for transmissions."""
+    node = MeshNode(1)
+    assert node.receive(stop(2, 3, seq=4), 1.0) is True  # new, for another robot: relayed
+    assert [t.relayed for t in node.transmissions(1.0)] == [True]
+    assert node.receive(with_ttl(stop(2, 3, seq=4), 5), 1.001) is False  # a copy: cached
+    assert node.receive(b"\x00" * 12, 1.002) is False  # malformed
+    assert node.receive(stop(1, 3, seq=9), 1.003) is False  # our own, heard back
+    assert node.receive(stop(2, 3, seq=4, ttl=1), 1.004) is False  # passing by, TTL < 2

@@ -31,7 +31,8 @@ the relay decision and the outbox; must not know radios, clocks, random numbers 
 #
 # TTL on send: a unicast control frame to a destination whose Heartbeat we heard and that the
 # neighbour table hears at h hops (not lost) goes out with TTL min(initial_ttl, h + attempt bits),
-# one hop more in a sparse team: its path, not the whole team. A broadcast, a segmented frame, or
+# one hop more in a sparse team: its path, not the whole team (a PoseUpdate's resends do not add
+# their attempt bits: the next update supersedes them). A broadcast, a segmented frame, or
 # a destination unknown, lost or never heard in a Heartbeat keeps the endpoint's TTL (Mesh Profile
 # 1.0, 3.6.7: heartbeat hop counts "may be used to determine the TTL"). docs/mesh.md 12.
 #
@@ -81,6 +82,9 @@ from .sar import SarSender
 from .segments import read_segment_header
 from .stats import MeshStats
 
+#: Types whose resends keep the first send's TTL: a PoseUpdate is superseded by the next within
+#: 0.5 s, and its resends flooding two or three hops were a third of a 30-robot convoy's airtime.
+_SUPERSEDED_TYPES = frozenset({MessageType.POSE_UPDATE})
 #: Segmented frames whose epoch the node remembers (a transfer is numbered in one epoch).
 _MAX_TX_EPOCHS = 64
 _HEARTBEAT_BYTES = 17  # 6 header + active_command + init_ttl + epoch (4) + capabilities + 4 CRC
@@ -184,9 +188,11 @@ class MeshNode:
 
     def receive(
         self, data: bytes, now: float, *, rssi_dbm: float | None = None, relay_delay_s: float = 0.0
-    ) -> None:
-        """Handle a frame heard on the air (steps in the module comment). Never raises for any
-        bytes; ValueError only for a relay_delay_s that is negative or not finite."""
+    ) -> bool:
+        """Handle a frame heard on the air (steps in the module comment). True when it was accepted;
+        False when it was dropped, and then the node has nothing new to send and no earlier timer
+        (a transport may skip asking). Never raises for any bytes; ValueError only for a
+        relay_delay_s that is negative or not finite."""
         if not (math.isfinite(relay_delay_s) and relay_delay_s >= 0.0):
             raise ValueError(f"relay_delay_s must be finite and >= 0, got {relay_delay_s!r}")
         stats = self.stats
@@ -195,10 +201,10 @@ class MeshNode:
         if len(data) > 3 and data[3] not in (self.address, BROADCAST) and data[0] & TTL_MASK < 2 \
                 and not self._outbox.holds_relays():  # step 0
             stats.dropped_passing += 1
-            return
+            return False
         read = self._reader.read(data)
         if read is None:
-            return
+            return False
         data, view, key, self._rx_epoch = read
         # a frame whose relayed copies still wait here is a duplicate even if its cache entry expired
         if not self._cache.check_and_add(key, now) or self._outbox.waiting(key):
@@ -207,13 +213,13 @@ class MeshNode:
             if cancelled:
                 stats.relays_suppressed += 1
                 stats.relay_copies_suppressed += cancelled
-            return
+            return False
         if self._replay is not None:
             send = None if view.kind is FrameKind.SEGMENT else data[1] >> 6
             verdict = self._replay.accept(view.src, self._rx_epoch, view.seq, send)
             if not verdict.accepted:
                 stats.dropped_replay += 1
-                return
+                return False
             if verdict is ReplayVerdict.NEW_EPOCH:
                 self._events.append(PeerRestarted(view.src, self._rx_epoch, now))
         stats.accepted += 1
@@ -228,6 +234,7 @@ class MeshNode:
         if view.dst != self.address and self.config.relay:
             beat = view.msg_type == MessageType.HEARTBEAT  # no hurry: wait longer, hear others relay it
             self._relay(data, view, now + relay_delay_s * (self.config.heartbeat_relay_delay_scale if beat else 1), key)
+        return True
 
     # --- the aioquic loop ------------------------------------------------------------------------
 
@@ -286,7 +293,8 @@ class MeshNode:
                 or not table.is_reachable(view.dst, now) or not table.heartbeat_heard(view.dst)):
             return view.ttl
         sparse = table.reachable_count(now) <= self.config.sparse_neighbours  # airtime to spare
-        slack = self.config.unicast_ttl_slack + (frame[1] >> ATTEMPT_SHIFT) + sparse
+        resend = 0 if view.msg_type in _SUPERSEDED_TYPES else frame[1] >> ATTEMPT_SHIFT
+        slack = self.config.unicast_ttl_slack + resend + sparse
         return min(view.ttl, table.hops_to(view.dst) + slack)
 
     def _relay(self, data: bytes, view: FrameView, due: float, key: bytes) -> None:
