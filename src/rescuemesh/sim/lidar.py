@@ -268,7 +268,6 @@ class Lidar:
         )
 
 
-
 # Radius in m added to a geom's disc in the beam plane: a beam tangent to a bounding sphere (a sphere
 # geom's own surface) is cast whatever the rounding of the angles. Casting a beam too many costs a
 # little time, never a different range.

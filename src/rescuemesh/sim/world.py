@@ -127,7 +127,6 @@ class World:
         self._gap_steps = max(1, round(COLLISION_GAP_S / self.physics_dt))
         self._collisions = [0] * len(names)  # indexed like self._bump
         self._open: dict[int, int] = {}  # open collision episodes: index like self._bump -> step of the last touch
-        self._any_episode = False
 
         mujoco.mj_forward(self.model, self.data)
         self._sweep()
@@ -217,7 +216,7 @@ class World:
         for _ in range(n):
             mujoco.mj_step(m, d)
             self._steps += 1
-            if self._any_episode or bump.any():
+            if self._open or bump.any():
                 self._update_episodes()
 
     def _physics_flying(self, n: int) -> None:
@@ -229,7 +228,7 @@ class World:
                 q.control(now)
             mujoco.mj_step(m, d)
             self._steps += 1
-            if self._any_episode or bump.any():
+            if self._open or bump.any():
                 self._update_episodes()
 
     def _update_episodes(self) -> None:
@@ -245,7 +244,6 @@ class World:
             episodes[i] = steps
         for i in [i for i, last in episodes.items() if steps - last >= self._gap_steps]:
             del episodes[i]
-        self._any_episode = bool(episodes)
 
     def _sweep(self) -> None:
         """One lidar sweep per robot at the current time (kinematics refreshed for current qpos)."""
