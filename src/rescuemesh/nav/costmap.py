@@ -208,13 +208,10 @@ class Costmap:
         out = object.__new__(Costmap)
         out.__dict__.update(self.__dict__)
         out.obstacle_stamp = now
-        # this runs for every scan, mostly on points of static walls: the cheap tests first, in
-        # few numpy calls (cells_of's floors compared as floats), the clear radius on the rest
-        h, w = self.shape
-        rows = np.floor((pts[:, 1] - self.grid.origin_y) / self.resolution)
-        cols = np.floor((pts[:, 0] - self.grid.origin_x) / self.resolution)
-        keep = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
-        flat = (rows[keep] * w + cols[keep]).astype(np.int64)
+        # this runs for every scan, mostly on points of static walls: the cheap tests first, the
+        # clear radius on the rest
+        rows, cols, keep = self.cells_of(pts)
+        flat = rows[keep] * self.shape[1] + cols[keep]
         stampable = self._stampable[flat]
         keep[keep] = stampable
         flat = flat[stampable]
