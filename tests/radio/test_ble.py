@@ -204,11 +204,14 @@ def test_cache_is_bounded():
 
 def test_the_cached_mean_power_is_the_link_budgets_to_the_last_bit(office):
     """The medium's cached path (shadow field kept per cell) equals `link_budget` exactly, both
-    ways round, over random pairs on the office (walls, shadowing and all)."""
+    ways round, and its shadow term is ShadowField.link_db's between the two cell centres, over
+    random pairs on the office (walls, shadowing and all)."""
     ch = make_channel("ble", grid=office.grid, seed=4)
     rng = np.random.default_rng(11)
     for _ in range(300):
         a = (float(rng.uniform(-1.0, 20.0)), float(rng.uniform(-1.0, 10.0)))
         b = (float(rng.uniform(-1.0, 20.0)), float(rng.uniform(-1.0, 10.0)))
-        expected = ch.link_budget(a, b).mean_rx_power_dbm
-        assert ch.mean_rx_power_dbm(a, b) == expected == ch.mean_rx_power_dbm(b, a)
+        budget = ch.link_budget(a, b)
+        assert ch.mean_rx_power_dbm(a, b) == budget.mean_rx_power_dbm == ch.mean_rx_power_dbm(b, a)
+        ca, cb = sorted((ch._cell(a), ch._cell(b)))
+        assert budget.shadow_db == ch.shadow.link_db(ch._centre(*ca), ch._centre(*cb)) != 0.0

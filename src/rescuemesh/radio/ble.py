@@ -195,29 +195,26 @@ class BleChannel(ChannelModel):
     def link_budget(self, tx_xy: Point, rx_xy: Point) -> LinkBudget:
         """The terms of the mean received power between the cells holding tx and rx."""
         a, b = sorted((self._cell(tx_xy), self._cell(rx_xy)))
-        pa, pb = self._centre(*a), self._centre(*b)
-        p = self.params
-        d = math.hypot(pb[0] - pa[0], pb[1] - pa[1])
-        path_loss = p.reference_loss_db + 10.0 * p.path_loss_exponent * math.log10(max(d, p.min_distance_m))
-        walls = count_walls(self.grid, pa, pb) if self.grid is not None else 0
-        shadow = self.shadow.link_db(pa, pb)
-        power = p.tx_power_dbm + p.tx_antenna_gain_dbi + p.rx_antenna_gain_dbi - path_loss \
-            - walls * p.wall_loss_db - shadow
-        return LinkBudget(d, path_loss, walls, walls * p.wall_loss_db, shadow, power, power - self._sens)
+        return self._budget_cells(*a, *b)
 
-    def _compute_mean_power_cells(self, ai: int, aj: int, bi: int, bj: int) -> float:
-        """`link_budget(...).mean_rx_power_dbm` between two cells, (ai, aj) <= (bi, bj), the same
-        float operations, with the shadow field read from a per-cell cache: a team's cells recur
-        far more often than their pairs, which change whenever either robot moves 5 cm."""
+    def _budget_cells(self, ai: int, aj: int, bi: int, bj: int) -> LinkBudget:
+        """The link budget between the centres of cells (ai, aj) <= (bi, bj), with the shadow field
+        read from a per-cell cache: a team's cells recur far more often than their pairs, which
+        change whenever either robot moves 5 cm."""
         pa, pb = self._centre(ai, aj), self._centre(bi, bj)
         p = self.params
         d = math.hypot(pb[0] - pa[0], pb[1] - pa[1])
         path_loss = p.reference_loss_db + 10.0 * p.path_loss_exponent * math.log10(max(d, p.min_distance_m))
         walls = count_walls(self.grid, pa, pb) if self.grid is not None else 0
+        # ShadowField.link_db(pa, pb), from the cached unit values
         shadow = self.shadow.sigma_db * (self._unit_at(ai, aj, pa) + self._unit_at(bi, bj, pb)) / _SQRT2 \
             if self.shadow.sigma_db != 0.0 else 0.0
-        return p.tx_power_dbm + p.tx_antenna_gain_dbi + p.rx_antenna_gain_dbi - path_loss \
+        power = p.tx_power_dbm + p.tx_antenna_gain_dbi + p.rx_antenna_gain_dbi - path_loss \
             - walls * p.wall_loss_db - shadow
+        return LinkBudget(d, path_loss, walls, walls * p.wall_loss_db, shadow, power, power - self._sens)
+
+    def _compute_mean_power_cells(self, ai: int, aj: int, bi: int, bj: int) -> float:
+        return self._budget_cells(ai, aj, bi, bj).mean_rx_power_dbm
 
     def _unit_at(self, i: int, j: int, centre: Point) -> float:
         """The shadow field F at the centre of cell (i, j), cached (bounded like the pair cache)."""
