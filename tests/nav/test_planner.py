@@ -184,3 +184,20 @@ def test_a_cheaper_way_out_of_the_small_window_is_not_missed():
     assert path.points[:, 1].max() > 6.3  # through the doorway, not the slot
     slot_only = MCPPlanner(first_margin_m=None, window_margin_m=0.5).plan(cm, start, goal)
     assert slot_only is not None and slot_only.points[:, 1].max() < 6.0  # a window can hold the worse way
+
+
+def test_a_path_through_a_slot_is_proved_best_in_the_small_window_on_a_small_map():
+    # 6 m through a costly 0.6 m slot, with open space beside the first window: a path leaving it
+    # may be no longer than this one, but on the static map it must come back through the same
+    # slot, so the small window's path is kept (a leader replanning to its goal every second)
+    occ = np.zeros((100, 200), dtype=bool)
+    occ[:2, :] = occ[-2:, :] = occ[:, :2] = occ[:, -2:] = True
+    occ[:, 100:102] = True
+    occ[44:56, 100:102] = False  # 0.6 m slot at y = 2.5 m
+    cm = Costmap(OccupancyGrid(occ, 0.05, 0.0, 0.0))
+    start, goal = Pose2D(2.0, 2.5), Pose2D(8.0, 2.5)
+    planner = MCPPlanner()
+    path = planner.plan(cm, start, goal)
+    assert _plans_agree(path, MCPPlanner(first_margin_m=None, window_margin_m=None).plan(cm, start, goal))
+    rows = planner._graph[0][1] - planner._graph[0][0]
+    assert rows < 40  # the first window: 1.2 m around the straight line, not the whole 5 m

@@ -121,12 +121,19 @@ class MCPPlanner(Planner):
 
     Building the MCP graph costs in proportion to the window's area, whatever the path's length
     (a follower plans about 1 m every second), so a smaller window is tried first: the box grown by
-    `first_margin_m` (1 m). Its path is kept only when it is provably the best on the whole map: every
-    step costs at least its length (cell costs are >= 1), so a path leaving the window costs at
-    least the shortest way from start to a cell outside it and on to the goal; a path found at
-    most that dear cannot be beaten. Otherwise the window grows once to the margin that cost
-    proves enough, then the 8 m window and the whole map as above. The certified path is the one
-    the larger windows find too (up to ties between equally cheap cell paths).
+    `first_margin_m` (1 m). Its path is kept only when it is provably the best on the whole map: a
+    path leaving the window first reaches a cell on the window's edge, along a way inside the window
+    that costs at least that cell's cost from the start as the window's search found it (at least the
+    path's own cost for a cell the search did not finish before reaching the goal); every step costs
+    at least its length (cell costs are >= 1), so the rest, out of the window and back to the goal,
+    costs at least its shortest length. A path found at most as dear as the cheapest such exit cannot
+    be beaten. When the larger windows would search the whole map anyway, the rest is bounded more
+    tightly by the cost from each edge cell to the goal on the static layer alone (scan obstacles
+    only raise costs), searched once on the whole map from the goal and kept while the goal's
+    cell stays (a leader replans to the same goal every second). Otherwise the window grows once
+    to the margin that cost proves enough, then the 8 m window and the whole map as above. The
+    certified path is the one the larger windows find too (up to ties between equally cheap cell
+    paths).
 
     Only the window's costs are stamped with scan obstacles (`Costmap.cost_in`). The coarse grid
     and its MCP graph are kept for the last window and costs planned on (the same static layer and
@@ -161,6 +168,8 @@ class MCPPlanner(Planner):
         self.first_margin_m = first_margin_m
         # (window, static cost, obstacle cells, coarse lethal, graph) of the last search
         self._graph: tuple | None = None
+        # (static cost, goal's coarse cell, static cost from every coarse cell to it) of the last goal
+        self._field: tuple | None = None
 
     def _search_graph(self, costmap: Costmap, window: tuple[int, int, int, int]) -> tuple[np.ndarray, MCP_Geometric]:
         """(coarse lethal mask, MCP graph over the coarse costs) of `window` (coarse rows r0:r1,
@@ -168,18 +177,38 @@ class MCPPlanner(Planner):
         kept = self._graph
         if (kept is None or kept[0] != window or kept[1] is not costmap.static_cost
                 or not np.array_equal(kept[2], costmap.obstacle_cells)):
-            coarse = self._coarse_cost(costmap, window)
-            lethal = coarse >= LETHAL
-            graph = MCP_Geometric(np.where(lethal, np.inf, 1.0 + self.cost_weight * coarse), fully_connected=True)
+            k = self.downsample
+            r0, r1, c0, c1 = window
+            lethal, graph = self._graph_over(costmap.cost_in(r0 * k, r1 * k, c0 * k, c1 * k), window)
             self._graph = kept = (window, costmap.static_cost, costmap.obstacle_cells, lethal, graph)
         return kept[3], kept[4]
 
-    def _coarse_cost(self, costmap: Costmap, window: tuple[int, int, int, int]) -> np.ndarray:
-        """The highest cost of each k x k block of cells in `window` (coarse cells; blocks past the
-        map's edge count as lethal)."""
+    def _goal_field(self, costmap: Costmap, goal: tuple[int, int]) -> np.ndarray:
+        """MCP cost (coarse cells) from every coarse cell of the whole map to the coarse cell
+        `goal` on the static layer alone (inf where unreachable), kept for the last goal."""
+        kept = self._field
+        if kept is None or kept[0] is not costmap.static_cost or kept[1] != goal:
+            _, graph = self._graph_over(costmap.static_cost, self._whole(costmap))
+            field, _ = graph.find_costs([goal])  # the same step costs both ways: the cost to the goal
+            self._field = kept = (costmap.static_cost, goal, field)
+        return kept[2]
+
+    def _graph_over(self, cost: np.ndarray, window: tuple[int, int, int, int]) -> tuple[np.ndarray, MCP_Geometric]:
+        """(coarse lethal mask, MCP graph) of the full-resolution costs `cost` of `window`."""
+        coarse = self._coarse_cost(cost, window)
+        lethal = coarse >= LETHAL
+        return lethal, MCP_Geometric(np.where(lethal, np.inf, 1.0 + self.cost_weight * coarse), fully_connected=True)
+
+    def _whole(self, costmap: Costmap) -> tuple[int, int, int, int]:
+        """The window of the whole map's coarse cells."""
+        k = self.downsample
+        return (0, -(-costmap.shape[0] // k), 0, -(-costmap.shape[1] // k))
+
+    def _coarse_cost(self, cost: np.ndarray, window: tuple[int, int, int, int]) -> np.ndarray:
+        """The highest cost of each k x k block of cells in `window` (coarse cells), from `cost`,
+        its full-resolution costs clipped to the map (blocks past the map's edge count as lethal)."""
         k = self.downsample
         r0, r1, c0, c1 = window
-        cost = costmap.cost_in(r0 * k, r1 * k, c0 * k, c1 * k)
         if k == 1:
             return cost
         h, w = cost.shape
@@ -195,9 +224,8 @@ class MCPPlanner(Planner):
     def _box(self, costmap: Costmap, start: Pose2D, goal: Pose2D, margin: int) -> tuple[int, int, int, int] | None:
         """The coarse-cell window around start and goal grown by `margin` cells, clipped to the
         map; None when empty (both off the map)."""
-        k = self.downsample
-        cell = costmap.resolution * k
-        rows, cols = (-(-n // k) for n in costmap.shape)
+        cell = costmap.resolution * self.downsample
+        _, rows, _, cols = self._whole(costmap)
         ox, oy = costmap.grid.origin_x, costmap.grid.origin_y
         r = [math.floor((y - oy) / cell) for y in (start.y, goal.y)]
         c = [math.floor((x - ox) / cell) for x in (start.x, goal.x)]
@@ -208,15 +236,13 @@ class MCPPlanner(Planner):
     def _windows(self, costmap: Costmap, start: Pose2D, goal: Pose2D) -> list[tuple[int, int, int, int]]:
         """Coarse-cell windows to search, smallest first: the box around start and goal grown by
         `window_margin_m` (when that is well under the whole map), then the whole map."""
-        k = self.downsample
-        rows, cols = (-(-n // k) for n in costmap.shape)
-        whole = (0, rows, 0, cols)
+        whole = self._whole(costmap)
         if self.window_margin_m is None:
             return [whole]
-        window = self._box(costmap, start, goal, int(math.ceil(self.window_margin_m / (costmap.resolution * k))))
+        window = self._box(costmap, start, goal, int(math.ceil(self.window_margin_m / (costmap.resolution * self.downsample))))
         if window is None:
             return [whole]
-        return [window, whole] if _area(window) < WHOLE_MAP_SHARE * rows * cols else [whole]
+        return [window, whole] if _area(window) < WHOLE_MAP_SHARE * _area(whole) else [whole]
 
     def plan(self, costmap: Costmap, start: Pose2D, goal: Pose2D, *, goal_tolerance: float = 0.0) -> Path | None:
         windows = self._windows(costmap, start, goal)
@@ -239,6 +265,7 @@ class MCPPlanner(Planner):
         # the snapping searches (nearest_free) must not be clipped by the window's edge
         reach = max(self.start_snap_radius, goal_tolerance, 1.5 * cell)
         margin = int(math.ceil(max(self.first_margin_m, reach) / cell)) + 2
+        whole = self._whole(costmap)
         for _ in range(2):
             window = self._box(costmap, start, goal, margin)
             if window is None or _area(window) >= area_limit:
@@ -246,17 +273,21 @@ class MCPPlanner(Planner):
             found = self._plan_in(costmap, start, goal, goal_tolerance, window)
             if found is None:
                 return None  # no path near: a detour, for the larger windows
-            path, cost, start_rc, goal_rc = found
-            if cost <= _exit_bound(window, start_rc, goal_rc, costmap.shape, self.downsample):
+            path, cost, cum, goal_rc = found
+            if cost <= _exit_bound(cum, window, goal_rc, whole):
                 return path
+            if area_limit >= _area(whole):  # a whole-map search is what the larger windows would cost
+                field = self._goal_field(costmap, (goal_rc[0] + window[0], goal_rc[1] + window[2]))
+                if cost <= _exit_bound(cum, window, goal_rc, whole, field):
+                    return path
             # a window whose every exit costs more than this path: margin >= cost / 2 cells
             margin = max(margin + 1, int(math.ceil(cost / 2.0)) + 2)
         return None
 
     def _plan_in(self, costmap: Costmap, start: Pose2D, goal: Pose2D, goal_tolerance: float,
-                 window: tuple[int, int, int, int]) -> tuple[Path, float, tuple[int, int], tuple[int, int]] | None:
-        """(path, its MCP cost in coarse cells, start and goal coarse cells on the whole map) of
-        the best path within `window`, or None."""
+                 window: tuple[int, int, int, int]) -> tuple[Path, float, np.ndarray, tuple[int, int]] | None:
+        """(path, its MCP cost in coarse cells, the search's cumulative costs over the window (inf
+        where it did not finish), the goal's cell in the window) of the best path within `window`, or None."""
         k = self.downsample
         cell = costmap.resolution * k
         r_off, c_off = window[0], window[2]
@@ -306,6 +337,7 @@ class MCPPlanner(Planner):
 
         cells = [start_rc]
         cost = 0.0
+        cum = np.full(lethal.shape, math.inf)
         if goal_rc != start_rc:
             cum, _ = mcp.find_costs([start_rc], [goal_rc], find_all_ends=True)
             cost = float(cum[goal_rc])
@@ -327,29 +359,33 @@ class MCPPlanner(Planner):
         points = np.asarray(pts, dtype=float)
         if self.smooth:
             points = shortcut(costmap, points, max_segment_m=self.max_segment_m)
-        return (Path.from_points(points), cost, (start_rc[0] + r_off, start_rc[1] + c_off),
-                (goal_rc[0] + r_off, goal_rc[1] + c_off))
+        return Path.from_points(points), cost, cum, goal_rc
 
 
 def _area(window: tuple[int, int, int, int]) -> int:
     return (window[1] - window[0]) * (window[3] - window[2])
 
 
-def _exit_bound(window: tuple[int, int, int, int], a: tuple[int, int], b: tuple[int, int],
-                shape: tuple[int, int], k: int) -> float:
-    """Least MCP cost (coarse cells) of a path from cell `a` to cell `b` that visits a coarse
-    cell outside `window`: at least its length, at least the shortest way from `a` to a line of
-    cells just outside a side and on to `b` (the mirror image of `b`). inf when the window is the
-    whole coarse grid of a map of `shape` full cells."""
-    rows, cols = -(-shape[0] // k), -(-shape[1] // k)
+def _exit_bound(cum: np.ndarray, window: tuple[int, int, int, int], goal: tuple[int, int],
+                whole: tuple[int, int, int, int], field: np.ndarray | None = None) -> float:
+    """Least MCP cost (coarse cells) of a path to the cell `goal` (in the window) that visits a
+    coarse cell outside `window`, given the search's cumulative costs `cum` over the window: over
+    the cells on the window's sides that border a cell of the `whole` map, their cost plus a
+    lower bound on the rest: the shortest way from them to a line of cells just outside that side
+    and on to the goal (the mirror image of the goal), or, given `field` (the cost from every
+    coarse cell of the whole map to the goal on the static layer), their field. inf when no side
+    borders a cell of the map."""
     r0, r1, c0, c1 = window
+    h, w = cum.shape
+    gr, gc = goal
+    in_row, in_col = np.arange(w) - gc, np.arange(h) - gr  # offsets from the goal along a side
+    sides = ((np.s_[0, :], gr + 2, in_row, r0 > whole[0]), (np.s_[-1, :], h + 1 - gr, in_row, r1 < whole[1]),
+             (np.s_[:, 0], gc + 2, in_col, c0 > whole[2]), (np.s_[:, -1], w + 1 - gc, in_col, c1 < whole[3]))
     bound = math.inf
-    for line, present in ((r0 - 1, r0 > 0), (r1, r1 < rows)):
+    for edge, across, along, present in sides:
         if present:
-            bound = min(bound, math.hypot(abs(a[0] - line) + abs(b[0] - line), a[1] - b[1]))
-    for line, present in ((c0 - 1, c0 > 0), (c1, c1 < cols)):
-        if present:
-            bound = min(bound, math.hypot(abs(a[1] - line) + abs(b[1] - line), a[0] - b[0]))
+            rest = np.hypot(across, along) if field is None else field[r0:r1, c0:c1][edge]
+            bound = min(bound, float(np.min(cum[edge] + rest)))
     return bound
 
 
