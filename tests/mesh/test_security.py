@@ -485,3 +485,45 @@ def test_fuzz_stops_at_its_time_bound(monkeypatch):
     assert report.timed_out and report.frames == 0
     monkeypatch.setattr(fuzz.time, "perf_counter", FakeClock(1.0))
     assert fuzz.main(["--frames", "100000", "--max-seconds", "0.5"]) == 2
+
+
+# --- remembered results ---------------------------------------------------------------------------
+
+
+@given(protocol_frames(), st.integers(0, 2**32 - 1))
+def test_a_remembering_sealer_gives_what_a_plain_one_computes(pair, epoch):
+    frame = encode_frame(*pair)
+    epoch = epoch_for(frame, epoch)
+    remembering = FrameSealer(KEY, remember=4)
+    for _ in range(2):  # computed, then remembered
+        sealed = remembering.seal(frame, epoch)
+        assert sealed == SEALER.seal(frame, epoch)
+        assert remembering.open(bytearray(sealed), epoch) == frame
+    forged = bytes((sealed[0],)) + bytes((sealed[1] ^ 0x40,)) + sealed[2:]
+    with pytest.raises(AuthenticationError):
+        remembering.open(forged, epoch)
+    with pytest.raises(AuthenticationError):  # a failure is not remembered as a success
+        remembering.open(forged, epoch)
+
+
+def test_a_sealer_remembers_a_bounded_number_of_openings():
+    sealer = FrameSealer(KEY, remember=3)
+    decrypted = []
+    decrypt = sealer._decrypt
+    sealer._decrypt = lambda *args: decrypted.append(args[0]) or decrypt(*args)
+    sealed = [SEALER.seal(f, epoch_for(f, EPOCH)) for f in ALL_FRAMES[:5]]
+    epochs = [epoch_for(f, EPOCH) for f in ALL_FRAMES[:5]]
+    sealer.open(sealed[0], epochs[0])
+    sealer.open(sealed[0], epochs[0])
+    assert len(decrypted) == 1  # the copy heard again is not decrypted again
+    for frame, epoch in zip(sealed[1:4], epochs[1:4]):
+        sealer.open(frame, epoch)
+    assert len(decrypted) == 4
+    assert sealer.open(sealed[0], epochs[0]) == ALL_FRAMES[0]  # forgotten (3 kept): decrypted again
+    assert len(decrypted) == 5
+
+
+@pytest.mark.parametrize("remember", [-1, 1.5, "3"])
+def test_remember_must_be_a_whole_number(remember):
+    with pytest.raises(ValueError, match="remember"):
+        FrameSealer(KEY, remember=remember)

@@ -115,23 +115,58 @@ def _aad_end(b0: int, b1: int, n: int) -> int | None:
 class FrameSealer:
     """Seals CRC frames into AUTH frames and opens them again, under one 16-byte frame key
     (keys.derive_frame_key of the team key). Sans-IO and deterministic: the same frame and epoch
-    always seal to the same bytes. One object per node; it holds the AES-CCM context."""
+    always seal to the same bytes. One object per node; it holds the AES-CCM context.
 
-    __slots__ = ("_encrypt", "_decrypt")
+    `remember`: how many recent seal and open results to keep, by (bytes, epoch) (0: none). Both
+    are pure functions of their arguments, so a result remembered is the result computed; a
+    simulated team shares one sealer, and the 20-odd robots that hear one frame open it once."""
 
-    def __init__(self, frame_key: bytes) -> None:
+    __slots__ = ("_encrypt", "_decrypt", "_remember", "_sealed", "_opened")
+
+    def __init__(self, frame_key: bytes, *, remember: int = 0) -> None:
         if not isinstance(frame_key, (bytes, bytearray)) or len(frame_key) != FRAME_KEY_BYTES:
             raise ValueError(f"a frame key is {FRAME_KEY_BYTES} bytes (AES-128)")
+        if not (isinstance(remember, int) and remember >= 0):
+            raise ValueError(f"remember must be a whole number >= 0, got {remember!r}")
         aead = AESCCM(bytes(frame_key), tag_length=MIC_BYTES)
         self._encrypt = aead.encrypt
         self._decrypt = aead.decrypt
+        self._remember = remember
+        self._sealed: dict[tuple[bytes, int], bytes] = {}
+        self._opened: dict[tuple[bytes, int], bytes] = {}
 
     @classmethod
-    def from_team_key(cls, team_key: bytes) -> FrameSealer:
+    def from_team_key(cls, team_key: bytes, *, remember: int = 0) -> FrameSealer:
         """A sealer under the frame key derived from `team_key` (the team key itself is never used)."""
-        return cls(derive_frame_key(team_key))
+        return cls(derive_frame_key(team_key), remember=remember)
 
     def seal(self, frame: bytes, epoch: int) -> bytes:
+        """See _seal below; the result is remembered (`remember`)."""
+        if not self._remember:
+            return self._seal(frame, epoch)
+        key = (bytes(frame), epoch)
+        sealed = self._sealed.get(key)
+        if sealed is None:
+            sealed = self._keep(self._sealed, key, self._seal(frame, epoch))
+        return sealed
+
+    def open(self, frame: bytes, epoch: int) -> bytes:
+        """See _open below; a result is remembered (`remember`), an AuthenticationError is not."""
+        if not self._remember:
+            return self._open(frame, epoch)
+        key = (bytes(frame), epoch)
+        opened = self._opened.get(key)
+        if opened is None:
+            opened = self._keep(self._opened, key, self._open(frame, epoch))
+        return opened
+
+    def _keep(self, memory: dict[tuple[bytes, int], bytes], key: tuple[bytes, int], value: bytes) -> bytes:
+        memory[key] = value
+        if len(memory) > self._remember:
+            del memory[next(iter(memory))]  # the oldest
+        return value
+
+    def _seal(self, frame: bytes, epoch: int) -> bytes:
         """The AUTH frame for CRC frame `frame` (an unsegmented frame of at most 20 bytes, or a segment
         frame of at most 29, exactly as the codec and the mesh make them) from a source whose epoch
         is `epoch` (0..2**32-1): AUTH set, payload encrypted, the MIC in place of the CRC; same
@@ -155,7 +190,7 @@ class FrameSealer:
         segment = frame[HEADER_BYTES:_SEG_END] if b0 & SEG_BIT else _NO_SEGMENT
         return aad + self._encrypt(aad[:HEADER_BYTES] + segment + epoch_bytes, frame[end:body], aad)
 
-    def open(self, frame: bytes, epoch: int) -> bytes:
+    def _open(self, frame: bytes, epoch: int) -> bytes:
         """The CRC frame inside AUTH frame `frame` as heard, from a source whose epoch is `epoch`:
         AUTH cleared, payload decrypted, CRC-32 recomputed, so the rest of the stack is unchanged.
         Raises AuthenticationError, and nothing else, for any bytes that are not a frame sealed
