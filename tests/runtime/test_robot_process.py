@@ -9,7 +9,7 @@ from rescuemesh.geometry import Pose2D
 from rescuemesh.maps import load_map, office_map_path
 from rescuemesh.nav import Costmap, NavigateToPose
 from rescuemesh.protocol import ResultCode
-from rescuemesh.robot.brain import BrainEvent
+from rescuemesh.robot import BrainEvent
 from rescuemesh.runtime.control import dumps, loads
 from rescuemesh.runtime.robot_process import is_data
 

@@ -1,10 +1,11 @@
 """The robot's brain: a command handler that turns protocol events into behaviours.
 
-Owns: RobotBrain, behaviours (follow, move-around, navigate), robot naming. Must not know: the
+Owns: RobotBrain and its records, behaviours (follow, move-around, navigate), robot naming. Must not know: the
 simulator (it talks to a `rescuemesh.body.Body`), the transport, the clock (it is handed `now`).
 """
 
-from rescuemesh.robot.brain import BrainConfig, BrainEvent, FinishedBehaviour, RobotBrain
+from rescuemesh.robot.brain import RobotBrain
+from rescuemesh.robot.records import BrainConfig, BrainEvent, FinishedBehaviour
 from rescuemesh.robot.naming import robot_address, robot_name
 
 __all__ = ["BrainConfig", "BrainEvent", "FinishedBehaviour", "RobotBrain", "robot_address", "robot_name"]

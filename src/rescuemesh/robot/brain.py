@@ -17,11 +17,9 @@ window opens; heard again within it, the command resumes; if not, both sides end
 
 from __future__ import annotations
 
-import math
 from collections import deque
-from dataclasses import dataclass, field
 
-from rescuemesh.body import Body, NoRendererError, RobotKind
+from rescuemesh.body import Body, RobotKind
 from rescuemesh.geometry import Pose2D
 from rescuemesh.mesh import NeighbourFound, NeighbourLost, PeerRestarted, TransferComplete, TransferFailed
 from rescuemesh.nav import Costmap, NavigateToPose
@@ -44,7 +42,6 @@ from rescuemesh.protocol import (
     HeartbeatReceived,
     MessageType,
     MoveAround,
-    Pose,
     PoseUpdate,
     PoseUpdateReceived,
     Reason,
@@ -61,131 +58,22 @@ from rescuemesh.robot.behaviours import (
 from rescuemesh.robot.forwarding import Forwarder
 from rescuemesh.robot.naming import robot_name
 from rescuemesh.robot.policy import MOTION_LEVEL, Priority, Rank, Resource, conflict, priority_of, resources_of
-from rescuemesh.robot.sensor_codec import STREAM_BYTES_PER_S, choose_jpeg, data_budget_bytes, encode_scan
 from rescuemesh.robot.landing import LandOnTopBehaviour
+from rescuemesh.robot.records import (
+    MOTION_COMMANDS,
+    REPORTS_PROGRESS,
+    STREAMED,
+    BrainConfig,
+    BrainEvent,
+    FinishedBehaviour,
+    OutgoingCommand,
+    PoseStream,
+    Running,
+    from_wire_pose,
+    heartbeat_phase_s,
+    to_wire_pose,
+)
 from rescuemesh.robot.sensing import SensorCommands
-
-
-@dataclass(frozen=True)
-class BrainConfig:
-    """Behaviour settings; defaults from the issue and the paper."""
-
-    follow_distance_m: float = 1.0
-    pose_update_rate_hz: float = 2.0
-    heartbeat_period_s: float = 1.0  # must equal the mesh layer's (it counts missed heartbeats)
-    partner_timeout_s: float = 1.5  # a follower halts when its leader sends no PoseUpdate this long (3 updates)
-    reconnect_window_s: float = 5.0  # after a peer is lost: resume if heard again within it, else FAILED
-    #: Safety nets for a link that works one way only (heartbeats heard, PoseUpdates not): a follower
-    #: with no PoseUpdate, a leader with no confirmed PoseUpdate, this long, in s, ends the Follow.
-    #: Longer than the link-loss rule (3.5 s + reconnect window), which normally ends it first.
-    partner_give_up_s: float = 10.0
-    move_around_waypoints: int = 20
-    forward_timeout_s: float = 30.0  # how long a ForwardMsg is held for an unreachable target
-    forward_capacity: int = 8  # ForwardMsg jobs held at once
-    progress_period_s: float = 1.0  # Goto/Return/MoveAround send IN_PROGRESS this often (MAVLink pattern)
-    #: A final report (DONE, FAILED, CANCELLED after ACCEPTED) is not confirmed: it goes out this
-    #: many times, `final_report_spacing_s` apart, so that losing every copy is unlikely.
-    final_report_copies: int = 3
-    final_report_spacing_s: float = 0.25
-    ranks: dict = field(default_factory=dict)  # robot address -> Rank (a team file or scenario sets it)
-    base: Pose2D | None = None  # where Return goes; the runtime sets the start pose
-    has_laser: bool = True  # capabilities: ShowScan needs a laser, ShowCam a camera
-    has_camera: bool = True
-    laser_range_m: float = 5.0  # a viewpoint for ShowScan is at most this far from the position
-    camera_range_m: float = 4.0  # ... for ShowCam
-    show_timeout_s: float = 120.0  # an open-ended ShowScan/ShowCam (count 0) ends after this
-    laser_fov_rad: float = math.radians(240.0)  # a ShowScan runs beside a drive if the spot is in this
-
-
-@dataclass(frozen=True, slots=True)
-class BrainEvent:
-    """One line of a robot's log, for result.json and timelines."""
-
-    time_s: float
-    robot: str
-    kind: str
-    detail: str = ""
-
-
-@dataclass
-class OutgoingCommand:
-    """A command this robot sent, and what became of it: the latest result and reason reported,
-    the sends the first Confirm took and the hops it crossed; `failed` when given up unconfirmed."""
-
-    seq: int
-    peer: int
-    kind: str
-    sent_s: float
-    msg_type: MessageType = MessageType.STOP
-    result: ResultCode | None = None
-    reason: Reason = Reason.NONE
-    sends: int = 0
-    hops: int | None = None
-    failed: bool = False
-
-
-@dataclass
-class _PoseStream:
-    """The leader side of a Follow: PoseUpdates to one follower."""
-
-    follower: int
-    follow_seq: int  # the Follow command this stream serves
-    next_send_s: float
-    last_confirmed_s: float
-    failed_in_a_row: int = 0
-    paused: bool = False  # the follower's link is lost: no PoseUpdates until it is heard again
-    outstanding: set[int] = field(default_factory=set)
-
-
-@dataclass(frozen=True, slots=True)
-class FinishedBehaviour:
-    """A behaviour that ran: its name, when it ran (s), its final result, why (code and words)."""
-
-    name: str
-    started_s: float
-    ended_s: float
-    result: ResultCode
-    reason: str
-    code: Reason = Reason.NONE
-
-
-@dataclass
-class _Running:
-    behaviour: Behaviour
-    started_s: float
-    commander: int | None = None  # address of the robot whose command started it; None: own mission
-    seq: int | None = None
-    msg_type: MessageType | None = None
-    priority: Priority = Priority(Rank.PEER, MOTION_LEVEL)
-    resources: Resource = Resource.MOTION
-    next_report_s: float = 0.0
-
-
-#: Commands after which the sender streams its pose (PoseUpdates) to the receiver until it ends.
-STREAMED = frozenset({MessageType.FOLLOW, MessageType.LAND_ON_TOP})
-
-#: Commands whose receiver reports IN_PROGRESS with a percentage while it runs them.
-REPORTS_PROGRESS = frozenset({MessageType.GOTO, MessageType.RETURN, MessageType.MOVE_AROUND,
-                              MessageType.SHOW_SCAN, MessageType.SHOW_CAM, MessageType.LAND_ON_TOP})
-
-#: Commands that move the receiver: when one is given up, the sender sends Stop in case it runs.
-MOTION_COMMANDS = frozenset({MessageType.FOLLOW, MessageType.MOVE_AROUND, MessageType.GOTO, MessageType.RETURN,
-                             MessageType.LAND_ON_TOP})
-
-
-def heartbeat_phase_s(address: int, period_s: float) -> float:
-    """When a robot sends its first heartbeat, in s: spread over the period by address (golden-ratio
-    spacing), so a team's beacons do not all leave on one control tick as unsynchronised robots'
-    would not (collisions on the air otherwise)."""
-    return (address * 0.6180339887498949) % 1.0 * period_s
-
-
-def to_wire_pose(pose: Pose2D) -> Pose:
-    return Pose(pose.x, pose.y, 0.0, pose.yaw)
-
-
-def from_wire_pose(pose: Pose) -> Pose2D:
-    return Pose2D(pose.x, pose.y, pose.yaw)
 
 
 class RobotBrain(SensorCommands):
@@ -205,10 +93,10 @@ class RobotBrain(SensorCommands):
         self.config = config or BrainConfig()
         self.log: list[BrainEvent] = []
         self.outgoing: dict[int, OutgoingCommand] = {}
-        self.streams: dict[int, _PoseStream] = {}
-        self.running: _Running | None = None
+        self.streams: dict[int, PoseStream] = {}
+        self.running: Running | None = None
         #: A ShowScan running beside the motion command (it needs the laser only: no turn, no drive).
-        self.sensing: _Running | None = None
+        self.sensing: Running | None = None
         self.finished: list[FinishedBehaviour] = []
         self.commands_failed = 0
         self.frames_rejected = 0
@@ -241,7 +129,7 @@ class RobotBrain(SensorCommands):
     def navigate_to(self, goal: Pose2D, now: float) -> None:
         """Drive to `goal` on this robot's own account (replaces the running behaviour)."""
         own = Priority(self.rank_of(self.address), MOTION_LEVEL)
-        self._start(_Running(NavigateBehaviour(self.nav, goal, now), now, priority=own), now)
+        self._start(Running(NavigateBehaviour(self.nav, goal, now), now, priority=own), now)
 
     def rank_of(self, address: int) -> Rank:
         return Rank(self.config.ranks.get(address, Rank.PEER))
@@ -385,8 +273,8 @@ class RobotBrain(SensorCommands):
                                             f"{reason.name} by {holder}")
         return False
 
-    def _running_for(self, event: CommandReceived, behaviour: Behaviour, now: float) -> _Running:
-        return _Running(behaviour, now, event.src, event.seq, event.command.TYPE,
+    def _running_for(self, event: CommandReceived, behaviour: Behaviour, now: float) -> Running:
+        return Running(behaviour, now, event.src, event.seq, event.command.TYPE,
                         priority_of(event.command.TYPE, self.rank_of(event.src)), resources_of(event.command.TYPE),
                         next_report_s=now + self.config.progress_period_s)
 
@@ -480,7 +368,7 @@ class RobotBrain(SensorCommands):
         self._note(event.now, "confirm", f"{sent.kind} by {robot_name(event.src)}: {event.result.name}{why}{hops}")
         if sent.msg_type in STREAMED and event.solicited and event.result == ResultCode.ACCEPTED \
                 and not self._stopped_since(event.src, sent.sent_s):
-            self.streams[event.src] = _PoseStream(event.src, event.ref_seq, next_send_s=now, last_confirmed_s=now)
+            self.streams[event.src] = PoseStream(event.src, event.ref_seq, next_send_s=now, last_confirmed_s=now)
         elif sent.msg_type in STREAMED and event.result in (ResultCode.CANCELLED, ResultCode.FAILED, ResultCode.DONE):
             stream = self.streams.get(event.src)
             if stream is not None and stream.follow_seq == event.ref_seq:
@@ -616,7 +504,7 @@ class RobotBrain(SensorCommands):
 
     # ----- running behaviours -----
 
-    def _start(self, running: _Running, now: float) -> None:
+    def _start(self, running: Running, now: float) -> None:
         self._end_running(now, ResultCode.CANCELLED, Reason.REPLACED, f"replaced by {running.behaviour.name}")
         self.running = running
         self._note(now, "behaviour_started", running.behaviour.name)

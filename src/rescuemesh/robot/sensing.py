@@ -22,6 +22,7 @@ from rescuemesh.protocol import (
 from rescuemesh.robot.landing import LandOnTopBehaviour
 from rescuemesh.robot.naming import robot_name
 from rescuemesh.robot.policy import Resource, priority_of
+from rescuemesh.robot.records import Running
 from rescuemesh.robot.sensor_codec import STREAM_BYTES_PER_S, choose_jpeg, data_budget_bytes, encode_scan
 from rescuemesh.robot.show import ShowBehaviour, sees
 
@@ -127,7 +128,7 @@ class SensorCommands:
             raise NoRendererError("this robot's body has no camera")
         return DataKind.IMAGE_JPEG, choose_jpeg(image.rgb, max_bytes=budget).data
 
-    def _send_captures(self, now: float, running: _Running | None = None) -> None:
+    def _send_captures(self, now: float, running: Running | None = None) -> None:
         running = running if running is not None else self.running
         outbox = getattr(running.behaviour, "outbox", None)
         if not outbox:

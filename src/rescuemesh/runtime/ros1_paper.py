@@ -34,7 +34,7 @@ from rescuemesh.protocol import (CommandReceived, Confirm, ConfirmReceived, Land
                                  PoseUpdate, PoseUpdateReceived, Reason, ShowCam, ShowScan)
 from rescuemesh.protocol.messages import COMMAND_TYPES, PROGRESS_UNKNOWN
 from rescuemesh.robot import robot_address, robot_name
-from rescuemesh.robot.brain import to_wire_pose
+from rescuemesh.robot.records import to_wire_pose
 from rescuemesh.runtime.ros1_body import ROS1_INSTALL_HINT, Ros1Unavailable, import_rospy, quaternion_msg_to_yaw
 
 MSG_PACKAGE = "rescuemesh_msgs"
