@@ -22,8 +22,7 @@ import abc
 import enum
 import inspect
 import math
-from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 
@@ -66,9 +65,9 @@ class LossCause(enum.Enum):
     HALF_DUPLEX = "half_duplex"  # the receiving radio was itself transmitting
 
 
-@dataclass(frozen=True, slots=True)
-class Reception:
-    """The fate of one frame at one receiver, as the channel model decided it.
+class Reception(NamedTuple):
+    """The fate of one frame at one receiver, as the channel model decided it (immutable; a named
+    tuple, as it is made per frame per receiver: a frozen dataclass cost 2.6 times as much).
 
     - `delivered`: the frame arrived intact.
     - `rssi_dbm`: this frame's received power in dBm including fast fading (the disc model: 0.0
