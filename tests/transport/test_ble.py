@@ -25,13 +25,11 @@ from rescuemesh.mesh import NetworkStack  # noqa: E402
 from rescuemesh.protocol import Endpoint, EndpointConfig, ReliabilityConfig  # noqa: E402
 from rescuemesh.runtime.ble_check import (  # noqa: E402
     BLE_ACK_TIMEOUT_S,
-    FrameLog,
-    Cause,
     default_stack,
     main_ble_check,
-    percentile,
     run_ble_check,
 )
+from rescuemesh.runtime.ble_measure import Cause, FrameLog, percentile  # noqa: E402
 from rescuemesh.transport.ble import (  # noqa: E402
     MAX_FRAME_BYTES,
     BleBearer,
