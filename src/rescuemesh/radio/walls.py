@@ -19,6 +19,10 @@ floor((2 i |d_minor| + n) / (2 n))), so the two agree cell for cell (tests/radio
 compares them). Limitation: the line is 8-connected, so a diagonal wall one cell thick whose cells
 touch only at corners can be slipped through; the office's walls are axis-aligned and two cells
 thick.
+
+A segment whose cells' bounding box holds no occupied cell crosses no wall: that box is summed in
+O(1) from the grid's summed-area table before any line is drawn. In a team most pairs of robots
+see each other across free floor (61 % of new pairs in the follow, 77 % in a 10-robot convoy).
 """
 
 from __future__ import annotations
@@ -34,6 +38,20 @@ from rescuemesh.maps.grid import OccupancyGrid
 _CHUNK_CELLS = 2_000_000
 #: Padded occupancy (a border of occupied cells all round) of the last few grids, by identity.
 _PADDED: dict[int, tuple[OccupancyGrid, np.ndarray]] = {}
+#: Summed-area tables of the last few grids' occupancy, by identity: S[r, c] = occupied cells in
+#: rows < r and columns < c.
+_SUMS: dict[int, tuple[OccupancyGrid, np.ndarray]] = {}
+
+
+def _sums(grid: OccupancyGrid) -> np.ndarray:
+    entry = _SUMS.get(id(grid))
+    if entry is None or entry[0] is not grid:
+        if len(_SUMS) >= 8:
+            _SUMS.clear()
+        table = np.zeros((grid.occupied.shape[0] + 1, grid.occupied.shape[1] + 1), dtype=np.int64)
+        np.cumsum(np.cumsum(grid.occupied, axis=0, dtype=np.int64), axis=1, out=table[1:, 1:])
+        entry = _SUMS[id(grid)] = (grid, table)
+    return entry[1]
 
 
 def _padded(grid: OccupancyGrid) -> np.ndarray:
@@ -61,10 +79,16 @@ def count_walls(grid: OccupancyGrid, a: tuple[float, float], b: tuple[float, flo
     """Walls crossed on the straight path from `a` to `b` (points in m, frame map)."""
     r0, c0 = _cell(grid, float(a[0]), float(a[1]))
     r1, c1 = _cell(grid, float(b[0]), float(b[1]))
-    rows, cols = _bresenham(r0, c0, r1, c1)
     n_rows, n_cols = grid.occupied.shape
-    if 0 <= min(r0, r1) and max(r0, r1) < n_rows and 0 <= min(c0, c1) and max(c0, c1) < n_cols:
-        occ = grid.occupied[rows, cols]  # the line stays in the box of its ends: on the grid
+    low_r, high_r, low_c, high_c = min(r0, r1), max(r0, r1) + 1, min(c0, c1), max(c0, c1) + 1
+    on_grid = 0 <= low_r and high_r <= n_rows and 0 <= low_c and high_c <= n_cols
+    if on_grid:  # the line stays in the box of its ends
+        sums = _sums(grid).item
+        if sums(high_r, high_c) - sums(low_r, high_c) - sums(high_r, low_c) + sums(low_r, low_c) == 0:
+            return 0
+    rows, cols = _bresenham(r0, c0, r1, c1)
+    if on_grid:
+        occ = grid.occupied[rows, cols]
     else:
         occ = _occupied_cells(grid, rows, cols)
     return int(np.count_nonzero(occ[1:] & ~occ[:-1]))
