@@ -16,8 +16,10 @@ import math
 
 import pytest
 
+from rescuemesh.body import RobotKind
 from rescuemesh.geometry import Pose2D, wrap_angle
 from rescuemesh.maps import MapModel, load_map, office_map_path
+from rescuemesh.runtime.config import SimConfig
 from rescuemesh.sim import World, mjcf
 
 START = Pose2D(4.0, 3.0, math.radians(30))  # open floor in the office, at least 1 m from any wall
@@ -175,3 +177,21 @@ def test_every_tyre_and_caster_rests_on_the_floor_with_its_contact_parameters(of
         assert tuple(found[name].solref) == mjcf.WHEEL_SOLREF
     for name in casters:
         assert found[name].dim == 1 and tuple(found[name].solref) == mjcf.CASTER_SOLREF
+
+
+def test_the_default_step_is_at_most_half_of_every_contact_time_constant(office: MapModel) -> None:
+    # MuJoCo wants a contact's time constant at least twice the step (with refsafe on it silently raises
+    # a shorter one to 2 * step: no longer the contact we chose). Every kind of contact a run makes:
+    # tyres, casters, a chassis on a wall, a drone's feet on the floor.
+    world = World(office, {"r": Pose2D(0.9, 4.6, math.pi), "drone": Pose2D(4.0, 3.0, 0.0)},
+                  kinds={"drone": RobotKind.FLYING}, camera=None)
+    assert world.physics_dt == mjcf.PHYSICS_DT == SimConfig().physics_dt <= mjcf.MAX_PHYSICS_DT
+    for period in (0.05, 0.1):  # the control tick and odometry; the lidar: whole steps
+        assert period / mjcf.PHYSICS_DT == round(period / mjcf.PHYSICS_DT)
+    world.bodies["r"].set_velocity(0.3, 0.0)
+    world.step(3.0)
+    assert world.contacts_now("r")
+    solrefs = {float(world.data.contact.solref[k][0]) for k in range(world.data.ncon)}
+    assert len(solrefs) >= 2 and min(solrefs) >= 2 * mjcf.MAX_PHYSICS_DT
+    with pytest.raises(ValueError, match="physics step"):
+        SimConfig(physics_dt=mjcf.MAX_PHYSICS_DT + 1e-4, control_dt=0.05)

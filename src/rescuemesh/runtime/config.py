@@ -11,6 +11,7 @@ from enum import Enum
 
 from rescuemesh.mesh import TEAM_RELAY_RETRANSMIT_COUNT, MeshConfig
 from rescuemesh.robot import BrainConfig
+from rescuemesh.sim.mjcf import MAX_PHYSICS_DT, PHYSICS_DT  # numbers only: mjcf does not import mujoco
 
 
 class RadioKind(Enum):
@@ -31,7 +32,7 @@ class SimConfig:
     """
 
     seed: int = 0
-    physics_dt: float = 0.005
+    physics_dt: float = PHYSICS_DT
     control_dt: float = 0.05
     loss: float = 0.0
     radio: RadioKind = RadioKind.BLE
@@ -47,8 +48,8 @@ class SimConfig:
 
     def __post_init__(self) -> None:
         ratio = self.control_dt / self.physics_dt
-        if self.physics_dt <= 0 or self.physics_dt > 0.005:
-            raise ValueError(f"physics step must be in (0, 0.005] s, got {self.physics_dt}")
+        if not 0.0 < self.physics_dt <= MAX_PHYSICS_DT:
+            raise ValueError(f"physics step must be in (0, {MAX_PHYSICS_DT}] s, got {self.physics_dt}")
         if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
             raise ValueError(f"control step {self.control_dt} s is not a whole multiple of the physics step")
         if self.brain.heartbeat_period_s != self.mesh.heartbeat_period_s:

@@ -4,8 +4,8 @@ Owns: the airframe the controller assumes (QuadrotorParams), its gains, the land
 the autopilot a FlyingBody runs. Must not know: MuJoCo or any simulator (this module imports only math,
 numpy and rescuemesh.body, so a robot process without physics can fly a real drone with it), the brain.
 
-Theory of operation. Every control step (the simulated body calls `Autopilot.step` before every 5 ms
-physics step, 200 Hz) runs one cascade, after the PX4 multicopter controller (position P -> velocity
+Theory of operation. Every control step (the simulated body calls `Autopilot.step` before every
+physics step: 160 Hz at the World's 6.25 ms, 200 Hz at 5 ms) runs one cascade, after the PX4 multicopter controller (position P -> velocity
 PI -> acceleration; docs.px4.io "Controller Diagrams") with the geometric attitude law of Lee, Leok &
 McClamroch 2010 / Mellinger & Kumar 2011:
 
@@ -134,7 +134,7 @@ class Setpoint:
 class FlightGains:
     """Gains of the cascade, in units that do not depend on the airframe (the attitude law is scaled by
     the inertia). Position to velocity: wn = sqrt(Kp Kv) = 2.8 rad/s, damping Kv / (2 wn) = 0.71.
-    Attitude: roll/pitch wn = 20 rad/s with damping 0.8 (a tenth of the 200 Hz loop rate); yaw 6 rad/s."""
+    Attitude: roll/pitch wn = 20 rad/s with damping 0.8 (an eighth of the 160 Hz loop rate); yaw 6 rad/s."""
 
     pos_p_xy: float = 2.0  # 1/s: position error -> velocity setpoint
     pos_p_z: float = 2.0  # 1/s

@@ -52,6 +52,14 @@ WHEEL_ARMATURE = 0.0005  # kg m^2, reflected inertia of motor and gearbox at the
 WHEEL_SOLREF = (0.015, 1.0)
 # Casters: frictionless (condim 1) with MuJoCo's default solref, as they were with priority="1".
 CASTER_SOLREF = (0.02, 1.0)
+# Physics step: MuJoCo wants a contact's time constant at least twice the timestep, or the contact
+# goes unstable; with the refsafe flag (on by default) it silently raises a shorter one to 2 * timestep
+# (MuJoCo docs, Modeling > Solver parameters, and XML reference, option/flag refsafe). The tyres' 15 ms
+# is the shortest here (quadrotor.py keeps MuJoCo's default 20 ms), so the step may be up to 7.5 ms.
+MAX_PHYSICS_DT = 0.5 * min(WHEEL_SOLREF[0], CASTER_SOLREF[0])  # s
+# The default step: 8 to the 50 ms control tick and odometry period, 16 to the 100 ms lidar period, 20 %
+# below MAX_PHYSICS_DT and exact in binary (docs/physics.md; it was 5 ms, 10 a tick).
+PHYSICS_DT = 0.00625  # s
 
 # Forward RGB camera (sim/camera.py; docs/sensors.md). A TurtleBot 2 carries a Kinect (57 x 43 deg,
 # Microsoft "Kinect for Windows Sensor Components and Specifications") or an Orbbec Astra (60 x 49.5
