@@ -3,11 +3,15 @@ what does not open is counted every time; the memory is bounded."""
 
 from __future__ import annotations
 
+import pytest
+
+from rescuemesh.mesh.frames import read_on_air
 from rescuemesh.mesh.keys import derive_frame_key, team_key_from_seed
 from rescuemesh.mesh.reader import MAX_OPENED_FRAMES, FrameReader
 from rescuemesh.mesh.replay import ReplayWindow
 from rescuemesh.mesh.security import FrameSealer
 from rescuemesh.mesh.stats import MeshStats
+from rescuemesh.protocol import IntegrityError
 
 from .frames import stop
 
@@ -63,3 +67,14 @@ def test_memory_is_bounded_and_forgets_the_oldest():
     reader.read(frames[0])
     assert sealer.opens == opens + 1  # the oldest was forgotten
     assert len(reader._recent) == MAX_OPENED_FRAMES
+
+
+
+def test_a_header_read_on_the_air_is_remembered_an_error_is_not():
+    frame = stop(1, 2, seq=7)
+    assert read_on_air(bytearray(frame)) == read_on_air(frame)  # any bytes-like, one answer
+    assert read_on_air(bytes(frame)) is read_on_air(frame)  # the second read is remembered
+    broken = frame[:-1] + bytes((frame[-1] ^ 1,))
+    for _ in range(2):  # raised every time, never remembered as a header
+        with pytest.raises(IntegrityError):
+            read_on_air(broken)

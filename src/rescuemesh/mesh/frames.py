@@ -8,6 +8,7 @@ from __future__ import annotations
 import struct
 import zlib
 from dataclasses import dataclass
+from functools import lru_cache
 from enum import Enum
 
 from rescuemesh.protocol import (
@@ -85,10 +86,21 @@ def _check_common(data: bytes) -> int:
     return b0
 
 
+#: Frames read on the air whose headers are kept (read_on_air is a pure function of the bytes, and
+#: a simulated team's 20-odd nodes that hear a frame read the same bytes: they parse it once).
+HEADERS_REMEMBERED = 1024
+
+
 def read_on_air(data: bytes) -> FrameView:
     """Check a frame heard on the air and read its header. Raises only protocol FrameErrors:
     TruncatedFrame, UnsupportedVersion, UnsupportedFeature (AUTH), IntegrityError (CRC) and
-    MalformedPayload (longer than 20 bytes without SEG, longer than 29 with it, source 255)."""
+    MalformedPayload (longer than 20 bytes without SEG, longer than 29 with it, source 255).
+    The last HEADERS_REMEMBERED headers read are remembered (an error is not)."""
+    return _read_on_air(bytes(data))
+
+
+@lru_cache(maxsize=HEADERS_REMEMBERED)
+def _read_on_air(data: bytes) -> FrameView:
     b0 = _check_common(data)
     limit = MAX_PDU_BYTES if b0 & SEG_BIT else MAX_CONTROL_FRAME_BYTES
     if len(data) > limit:
