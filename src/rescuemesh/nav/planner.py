@@ -59,14 +59,21 @@ def make_planner(name: str = "mcp", **kw) -> Planner:
     return cls(**kw)
 
 
-def segment_max_costs(costmap: Costmap, a: np.ndarray, bs: np.ndarray) -> np.ndarray:
-    """Highest cost in [0, 1] along each straight segment a -> bs[j] (m), sampled every 0.75 cell."""
-    bs = np.asarray(bs, dtype=float).reshape(-1, 2)
+def segment_samples(costmap: Costmap, a: np.ndarray, bs: np.ndarray) -> int:
+    """How many samples `segment_max_costs` takes along each segment a -> bs[j] (m): every 0.75
+    cell along the longest."""
     longest = float(np.max(np.hypot(*(bs - a).T))) if len(bs) else 0.0
-    n = max(2, int(math.ceil(longest / (0.75 * costmap.resolution))) + 1)
+    return max(2, int(math.ceil(longest / (0.75 * costmap.resolution))) + 1)
+
+
+def segment_max_costs(costmap: Costmap, a: np.ndarray, bs: np.ndarray, samples: int | None = None) -> np.ndarray:
+    """Highest cost in [0, 1] along each straight segment a -> bs[j] (m), sampled `samples` times
+    evenly from end to end (default: `segment_samples`)."""
+    bs = np.asarray(bs, dtype=float).reshape(-1, 2)
+    n = segment_samples(costmap, a, bs) if samples is None else samples
     f = np.linspace(0.0, 1.0, n)
-    samples = a[None, None, :] + f[None, :, None] * (bs - a)[:, None, :]
-    return costmap.costs_at(samples.reshape(-1, 2)).reshape(len(bs), n).max(axis=1)
+    samples_xy = a[None, None, :] + f[None, :, None] * (bs - a)[:, None, :]
+    return costmap.costs_at(samples_xy.reshape(-1, 2)).reshape(len(bs), n).max(axis=1)
 
 
 def shortcut(
@@ -77,7 +84,9 @@ def shortcut(
     From each kept point, jump to the farthest later point (at most `max_segment_m` away along the
     raw path) whose straight segment is not lethal and whose highest cost exceeds the highest cost of
     the raw path it replaces by no more than `cost_tolerance`: the result stays in the middle of
-    doorways as the raw path did, without its 45-degree staircase.
+    doorways as the raw path did, without its 45-degree staircase. The farthest point is tried
+    first (mostly it fits, and the nearer ones need not be sampled), with the samples the
+    segments to all of them get.
     """
     n = len(points)
     if n <= 2:
@@ -88,14 +97,18 @@ def shortcut(
     kept = [0]
     i = 0
     while i < n - 1:
-        j_max = int(np.searchsorted(cum, cum[i] + max_segment_m, side="right")) - 1
-        j_max = min(max(j_max, i + 1), n - 1)
-        cand = np.arange(i + 1, j_max + 1)
-        seg = segment_max_costs(costmap, points[i], points[cand])
-        raw = np.maximum.accumulate(raw_cost[i : j_max + 1])[1:]
-        ok = (seg < LETHAL) & (seg <= raw + cost_tolerance)
-        ok[0] = True  # the raw step itself is always allowed
-        i = int(cand[np.flatnonzero(ok)[-1]])
+        j = min(max(int(np.searchsorted(cum, cum[i] + max_segment_m, side="right")) - 1, i + 1), n - 1)
+        if j > i + 1:  # (the raw step itself is always allowed)
+            ends = points[i + 1 : j + 1]
+            limit = np.maximum.accumulate(raw_cost[i : j + 1])[1:] + cost_tolerance
+            samples = segment_samples(costmap, points[i], ends)
+            seg = segment_max_costs(costmap, points[i], ends[-1:], samples)
+            if not (seg[0] < LETHAL and seg[0] <= limit[-1]):
+                seg = segment_max_costs(costmap, points[i], ends, samples)
+                ok = (seg < LETHAL) & (seg <= limit)
+                ok[0] = True
+                j = i + 1 + int(np.flatnonzero(ok)[-1])
+        i = j
         kept.append(i)
     return points[kept]
 
