@@ -124,12 +124,19 @@ class Polyline:
             first = last = n - 2
         best_s, best_d = 0.0, math.inf
         for i in range(first, last + 1):
-            dx, dy = xs[i + 1] - xs[i], ys[i + 1] - ys[i]
+            x0, y0, c0, c1 = xs[i], ys[i], cum[i], cum[i + 1]
+            dx, dy = xs[i + 1] - x0, ys[i + 1] - y0
             len2 = dx * dx + dy * dy
-            t = ((x - xs[i]) * dx + (y - ys[i]) * dy) / (len2 if len2 > 0.0 else 1.0)
-            s = cum[i] + min(max(t, 0.0), 1.0) * math.sqrt(len2)
-            s = min(max(s, max(cum[i], lo)), min(cum[i + 1], hi))
-            px, py = self.point_at(s)
+            t = ((x - x0) * dx + (y - y0) * dy) / (len2 if len2 > 0.0 else 1.0)
+            s = c0 + min(max(t, 0.0), 1.0) * math.sqrt(len2)
+            s = min(max(s, max(c0, lo)), min(c1, hi))
+            # point_at(s), inlined: s lies on this segment (its ends are its vertices)
+            if s == c1:
+                px, py = xs[i + 1], ys[i + 1]
+            elif s == c0:
+                px, py = x0, y0
+            else:
+                px, py = dx / (c1 - c0) * (s - c0) + x0, dy / (c1 - c0) * (s - c0) + y0
             d = math.hypot(px - x, py - y)
             if d < best_d or i == first:
                 best_s, best_d = s, d
