@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from rescuemesh.geometry import Pose2D, wrap_angle
+from rescuemesh.geometry import Pose2D, quaternion_to_yaw, wrap_angle
 from rescuemesh.maps import MapModel, load_map, office_map_path
 from rescuemesh.sim import LidarConfig, SimBody, World
 
@@ -192,6 +192,22 @@ def test_odometry_tracks_the_pose_on_a_short_drive(office: MapModel) -> None:
     truth = body.pose()
     assert odom.distance_to(truth) < 0.03
     assert abs(wrap_angle(odom.yaw - truth.yaw)) < 0.02
+
+
+def test_pose_and_odometry_are_read_afresh_after_every_step(office: MapModel) -> None:
+    # SimBody keeps them between steps (World calls moved()); a stale one would lag the physics.
+    world = _world(office)
+    body = world.bodies["robot_1"]
+    body.set_velocity(0.5, 1.0)
+    seen = set()
+    for _ in range(12):  # single steps, across an odometry commit (every 8)
+        world.step(world.physics_dt)
+        adr = world.model.jnt_qposadr[world.model.joint("robot_1/root").id]
+        x, y, _, qw, qx, qy, qz = world.data.qpos[adr : adr + 7].tolist()
+        assert body.pose() == Pose2D(x, y, quaternion_to_yaw(qx, qy, qz, qw))
+        odom, v, _ = body.odometry()
+        seen.add((body.pose(), odom, v))
+    assert len(seen) == 12
 
 
 def test_bad_world_arguments(office: MapModel) -> None:

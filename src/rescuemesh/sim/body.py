@@ -43,6 +43,10 @@ class SimBody(Body):
         )
         self.body_id: int = model.body(mjcf.base_name(name)).id
         self._command = (0.0, 0.0)
+        # pose() and odometry() of the current physics state, computed on first use after each step:
+        # the World calls moved() after stepping (a follow reads a pose ~8 times a tick per robot).
+        self._pose: Pose2D | None = None
+        self._odometry: tuple[Pose2D, float, float] | None = None
         self._scan: LaserScan | None = None
         self._camera: Callable[[], CameraImage] | None = None
         # Odometry committed at the last integration point: pose and the wheel angles there.
@@ -53,18 +57,23 @@ class SimBody(Body):
 
     def pose(self) -> Pose2D:
         """Ground-truth pose of the base in the map frame (x, y in m, yaw in rad)."""
-        q = self._data.qpos[self._qpos_adr : self._qpos_adr + 7]
-        return Pose2D(float(q[0]), float(q[1]), quaternion_to_yaw(q[4], q[5], q[6], q[3]))
+        if self._pose is None:
+            x, y, _, qw, qx, qy, qz = self._data.qpos[self._qpos_adr : self._qpos_adr + 7].tolist()
+            self._pose = Pose2D(x, y, quaternion_to_yaw(qx, qy, qz, qw))
+        return self._pose
 
     def odometry(self) -> tuple[Pose2D, float, float]:
         """(wheel-odometry pose in the map frame, linear speed in m/s, angular speed in rad/s).
 
         The speeds are measured from the current wheel speeds, not the commanded ones.
         """
-        x, y, yaw = self._integrate()
-        wl, wr = (float(self._data.qvel[i]) for i in self._wheel_qvel)
-        r, sep = mjcf.WHEEL_RADIUS, mjcf.WHEEL_SEPARATION
-        return Pose2D(x, y, wrap_angle(yaw)), 0.5 * r * (wl + wr), r * (wr - wl) / sep
+        if self._odometry is None:
+            x, y, yaw = self._integrate(self._wheel_angles())
+            qvel = self._data.qvel
+            wl, wr = float(qvel[self._wheel_qvel[0]]), float(qvel[self._wheel_qvel[1]])
+            r, sep = mjcf.WHEEL_RADIUS, mjcf.WHEEL_SEPARATION
+            self._odometry = (Pose2D(x, y, wrap_angle(yaw)), 0.5 * r * (wl + wr), r * (wr - wl) / sep)
+        return self._odometry
 
     def scan(self) -> LaserScan | None:
         """The latest lidar sweep (taken by the World at the lidar rate), or None before the first."""
@@ -98,14 +107,20 @@ class SimBody(Body):
         """The last command after clamping: (linear in m/s, angular in rad/s)."""
         return self._command
 
+    def moved(self) -> None:
+        """The physics stepped (called by the World): pose and odometry are read afresh."""
+        self._pose = None
+        self._odometry = None
+
     def commit_odometry(self) -> None:
         """Fold the wheel motion since the last commit into the odometry pose (called by the World).
 
         The World commits on a fixed schedule of physics steps, so odometry does not depend on how
         often the caller steps or reads it.
         """
-        self._odom = self._integrate()
-        self._odom_wheels = self._wheel_angles()
+        wheels = self._wheel_angles()
+        self._odom = self._integrate(wheels)
+        self._odom_wheels = wheels
 
     def set_scan(self, scan: LaserScan) -> None:
         self._scan = scan
@@ -117,10 +132,11 @@ class SimBody(Body):
     def _wheel_angles(self) -> tuple[float, float]:
         return (float(self._data.qpos[self._wheel_qpos[0]]), float(self._data.qpos[self._wheel_qpos[1]]))
 
-    def _integrate(self) -> tuple[float, float, float]:
-        """Odometry pose (x, y, unwrapped yaw) now: the committed pose plus one midpoint-heading arc."""
+    def _integrate(self, wheels: tuple[float, float]) -> tuple[float, float, float]:
+        """Odometry pose (x, y, unwrapped yaw) at wheel angles `wheels`: the committed pose plus one
+        midpoint-heading arc."""
         x, y, yaw = self._odom
-        (l0, r0), (l1, r1) = self._odom_wheels, self._wheel_angles()
+        (l0, r0), (l1, r1) = self._odom_wheels, wheels
         dl, dr = mjcf.WHEEL_RADIUS * (l1 - l0), mjcf.WHEEL_RADIUS * (r1 - r0)
         ds, dyaw = 0.5 * (dl + dr), (dr - dl) / mjcf.WHEEL_SEPARATION
         mid = yaw + 0.5 * dyaw

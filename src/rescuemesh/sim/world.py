@@ -115,6 +115,7 @@ class World:
             for n in ground:
                 self.bodies[n].attach_camera(lambda n=n: self.cameras.capture(n, self.time))
         order = ground + flying  # the order of the bump sensors (mjcf.world_xml)
+        self._ground = [self.bodies[n] for n in ground]
         self._index = {n: order.index(n) for n in names}
         adr = [int(self.model.sensor_adr[self.model.sensor(mjcf.bump_sensor_name(n)).id]) for n in order]
         if adr != list(range(adr[0], adr[0] + len(adr))):
@@ -202,6 +203,8 @@ class World:
             next_scan = (self._steps // self._scan_every + 1) * self._scan_every
             stop = min(target, next_odom, next_scan)
             self._physics(stop - self._steps)
+            for body in self._ground:
+                body.moved()
             if self._steps % self._odom_every == 0:
                 for body in self.bodies.values():
                     body.commit_odometry()
@@ -210,25 +213,26 @@ class World:
 
     def _physics(self, n: int) -> None:
         """`n` physics steps, reading the chassis contact sensors after each."""
-        m, d, bump = self.model, self.data, self._bump
+        m, d, bump, count_nonzero = self.model, self.data, self._bump, np.count_nonzero
         if self._flyers:
             return self._physics_flying(n)
         for _ in range(n):
             mujoco.mj_step(m, d)
             self._steps += 1
-            if self._open or bump.any():
+            if self._open or count_nonzero(bump):
                 self._update_episodes()
 
     def _physics_flying(self, n: int) -> None:
         """As `_physics`, with every quadrotor's autopilot stepped before each physics step."""
         m, d, bump, flyers, dt = self.model, self.data, self._bump, self._flyers, self.physics_dt
+        count_nonzero = np.count_nonzero
         for _ in range(n):
             now = self._steps * dt
             for q in flyers:
                 q.control(now)
             mujoco.mj_step(m, d)
             self._steps += 1
-            if self._open or bump.any():
+            if self._open or count_nonzero(bump):
                 self._update_episodes()
 
     def _update_episodes(self) -> None:
