@@ -1,4 +1,4 @@
-"""The lidar casts in MuJoCo only the beams that can reach another body; its scans equal casting every beam."""
+"""The lidar tests each body only against the beams that can reach it; its scans equal casting every beam."""
 
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ from rescuemesh.body import RobotKind
 from rescuemesh.geometry import Pose2D
 from rescuemesh.maps import MapModel, load_map, office_map_path
 from rescuemesh.sim import LidarConfig, World, mjcf
+from rescuemesh.sim import lidar as lidar_module
 from rescuemesh.sim.lidar import Lidar
 
 FULL_CIRCLE = LidarConfig(fov_rad=2.0 * math.pi, beams=360)  # first and last beam both point backwards
@@ -151,25 +152,27 @@ def test_culled_sweep_equals_every_beam_cast_in_random_scenes(world: World, conf
     assert seen > 1000  # the scenes put many robots in view
 
 
-def test_only_the_beams_that_can_reach_a_body_are_cast(world: World, monkeypatch: pytest.MonkeyPatch) -> None:
-    casts: list[int] = []
-    multi_ray = mujoco.mj_multiRay
+def test_only_the_beams_that_can_reach_a_body_are_tested(world: World, monkeypatch: pytest.MonkeyPatch) -> None:
+    tests: list[int] = []
+    cast_bodies = lidar_module._cast_bodies
 
     def counting(*args):
-        casts.append(args[-2])  # nray
-        return multi_ray(*args)
+        tests.append(cast_bodies(*args))  # (beam, geom) pairs given to mju_rayGeom
+        return tests[-1]
 
     config = LidarConfig()
     lidar = Lidar(world._lidar_scene, world.bodies["a"].body_id, config, np.random.default_rng(0))
-    monkeypatch.setattr(mujoco, "mj_multiRay", counting)
+    monkeypatch.setattr(lidar_module, "_cast_bodies", counting)
     origin = Pose2D(9.0, 4.6, 0.0)
     _case(world, origin, [], drone_z=1.5)  # every other body out of range or above the beams
     lidar.sweep(0.0, origin)
-    assert casts == []
-    _case(world, origin, [(0.0, 1.0, 0.0)], drone_z=1.5)  # one chassis 1 m ahead: about 24 deg of the fan
+    assert tests == [0]
+    # One chassis 1 m ahead: about 24 deg of the fan, its chassis only (its top plate and standoffs lie
+    # above the beam plane), and none of the bodies out of range.
+    _case(world, origin, [(0.0, 1.0, 0.0)], drone_z=1.5)
     scan = lidar.sweep(0.0, origin)
     assert scan.ranges[341] == pytest.approx(1.0 - mjcf.CHASSIS_RADIUS, abs=1e-6)
-    assert len(casts) == 1 and 0 < casts[0] < 100
+    assert 0 < tests[1] < 100
 
 
 def test_a_sweep_from_the_last_pose_again_still_sees_the_others_move(world: World) -> None:

@@ -7,21 +7,21 @@ them) nor who reads them.
 Theory of operation (docs/sensors.md, section 9): a beam's range is the nearer of two casts. The
 map's walls, often a thousand static boxes on a SLAM map, are cast on the grid they came from
 (gridcast.py, an exact cell walk whose cost does not depend on the number of walls). Everything
-else the lidar's geom groups hold (other robots, quadrotors, any non-wall geom) is cast by
-mujoco.mj_multiRay in a small MuJoCo model of its own, the LidarScene, holding copies of those geoms
-on mocap bodies that follow the world's bodies. mj_multiRay visits every geom of a model for every
-beam, even geoms its group mask rejects, so casting in the world's own model would cost in
-proportion to the wall count. The world's model, its physics and its pictures keep the wall boxes.
+else the lidar's geom groups hold (other robots, quadrotors, any non-wall geom) is cast in a small
+MuJoCo model of its own, the LidarScene, holding copies of those geoms on mocap bodies that follow
+the world's bodies. mj_multiRay visits every geom of a model for every beam, even geoms its group
+mask rejects, so casting in the world's own model would cost in proportion to the wall count. The
+world's model, its physics and its pictures keep the wall boxes.
 
-mj_multiRay's cost is (beams cast) x (geoms in the scene): every beam tests every geom's bounding
-box. So a sweep casts only the beams that can reach a scene geom (`_beams_to_cast`): a geom's
-bounding sphere (geom_rbound, about its geom_xpos) cuts the beam plane in a disc, and only the beams
-whose angle lies within that disc's angular extent seen from the lidar, and whose range reaches
-it, can hit the geom. The robot's own geoms are skipped, as mj_multiRay's bodyexclude skips them.
-Each beam's result does not depend on the others (mj_multiRay loops over beams, engine_ray.c), so
-the ranges equal those of casting all beams; a beam that cannot hit a geom reads no return, as it
-would have. In a convoy most beams reach no other robot, and with no other robot in range none is
-cast.
+mj_multiRay's cost is (beams cast) x (geoms in the scene): every beam visits every geom. So a sweep
+tests each geom only against the beams that can reach it (`_cast_bodies`): a geom's bounding sphere
+(geom_rbound, about its geom_xpos) cuts the beam plane in a disc, and only the beams whose angle lies
+within that disc's angular extent seen from the lidar, and whose range reaches it, can hit the
+geom. Each such (beam, geom) pair gets the test mj_multiRay makes, MuJoCo's own `mju_rayGeom`
+(raygeom.py), and a beam's range is the nearest hit, as mj_multiRay's; a beam that cannot hit a
+geom reads no return from it, as it would have. The robot's own geoms are skipped, as
+mj_multiRay's bodyexclude skips them. In a convoy most beams reach no other robot, and a beam that
+does is tested against the one or two robots in its way, not all thirty.
 """
 
 from __future__ import annotations
@@ -39,6 +39,7 @@ from rescuemesh.geometry import Pose2D
 from rescuemesh.maps.model import MapModel
 from rescuemesh.sim.gridcast import WallGrid
 from rescuemesh.sim.mjcf import LIDAR_GEOM_GROUPS
+from rescuemesh.sim.raygeom import ray_geom
 
 
 @dataclass(frozen=True)
@@ -164,9 +165,8 @@ def _seen_by_lidar(model: mujoco.MjModel, g: int) -> bool:
 
 
 def _geom_xml(model: mujoco.MjModel, g: int) -> str:
-    """MJCF of a copy of geom `g`. Its contype and conaffinity stay at MuJoCo's defaults: the compiler
-    gives a body the bounding volume mj_multiRay uses to skip it only when its geoms can collide (with
-    0 and 0 a sweep took twice as long). The scene is never stepped, so nothing collides."""
+    """MJCF of a copy of geom `g`, with its type, size, pose in its body and group. Its contype and
+    conaffinity stay at MuJoCo's defaults: the scene is never stepped, so nothing collides."""
     kind = _PRIMITIVES.get(int(model.geom_type[g]))
     if kind is None:
         name = model.geom(g).name or f"#{g}"
@@ -197,22 +197,17 @@ class Lidar:
         self._rng = rng
         n = config.beams
         self._angles = config.angle_min + config.angle_increment * np.arange(n)
-        self._groups = np.array(LIDAR_GEOM_GROUPS, dtype=np.uint8)
         self._sees_walls = 0.0 <= config.height <= scene.walls.wall_height
         self._pnt = np.zeros(3)
         self._world_angles = np.zeros(n)
         self._cos = np.zeros(n)
         self._sin = np.zeros(n)
+        self._vec = np.zeros((n, 3))  # the beams' directions: (cos, sin, 0)
         self._wall_dist = np.full(n, np.inf)
+        self._dist = np.zeros(n)  # MuJoCo's distance to the nearest scene geom, -1: none
         #: (x, y, yaw) of the last sweep, whose cos, sin and wall ranges are kept: a robot standing still
         #: (a third of the sweeps in the follow scenario) sweeps from the very same pose again.
         self._last_pose: tuple[float, float, float] | None = None
-        # The beams cast in MuJoCo this sweep: their indices, directions (z stays 0) and results.
-        self._cast = np.zeros(n, dtype=np.uint8)  # scratch: 1 where a beam is cast
-        self._cast_index = np.zeros(n, dtype=np.intp)
-        self._cast_vec = np.zeros((n, 3))
-        self._geomid = np.zeros(n, dtype=np.int32)
-        self._dist = np.zeros(n)
 
     def sweep(self, stamp: float, origin: Pose2D) -> LaserScan:
         """One sweep from `origin` (map frame) taken at `stamp` s; the scene must be current (refresh)."""
@@ -225,34 +220,22 @@ class Lidar:
                 world_angles = np.add(self._angles, origin.yaw, out=self._world_angles)
                 np.cos(world_angles, out=cos)
                 np.sin(world_angles, out=sin)
+                self._vec[:, 0] = cos
+                self._vec[:, 1] = sin
             if self._sees_walls:
                 scene.walls.cast(origin.x, origin.y, cos, sin, cfg.range_max, self._wall_dist)
             self._last_pose = pose
         self._pnt[0] = origin.x
         self._pnt[1] = origin.y
         self._pnt[2] = cfg.height
-        count = _beams_to_cast(
-            scene.data.geom_xpos, scene.model.geom_rbound, scene.model.geom_bodyid, self._exclude, self._pnt,
-            cfg.angle_min + origin.yaw, cfg.angle_increment, cfg.range_max, cos, sin, self._cast, self._cast_index,
-            self._cast_vec,
+        model = scene.model
+        _cast_bodies(
+            scene.data.geom_xpos, scene.data.geom_xmat, model.geom_size, model.geom_type, model.geom_rbound,
+            model.geom_bodyid, self._exclude, self._pnt, cfg.angle_min + origin.yaw, cfg.angle_increment,
+            cfg.range_max, self._vec, self._dist,
         )
-        if count:  # else every beam's MuJoCo cast would have read no return
-            mujoco.mj_multiRay(
-                scene.model,
-                scene.data,
-                self._pnt,
-                self._cast_vec[:count].reshape(-1),
-                self._groups,
-                1,  # include static geoms
-                self._exclude,
-                self._geomid[:count],
-                self._dist[:count],
-                None,
-                count,
-                cfg.range_max,
-            )
         ranges = np.empty(cfg.beams)
-        _nearer(self._wall_dist, self._cast_index, self._dist, count, cfg.range_max, ranges)
+        _nearer(self._wall_dist, self._dist, cfg.range_max, ranges)
         if cfg.noise_std > 0.0:
             hit = np.isfinite(ranges)
             ranges[hit] += self._rng.normal(0.0, cfg.noise_std, int(hit.sum()))
@@ -269,71 +252,77 @@ class Lidar:
 
 
 # Radius in m added to a geom's disc in the beam plane: a beam tangent to a bounding sphere (a sphere
-# geom's own surface) is cast whatever the rounding of the angles. Casting a beam too many costs a
+# geom's own surface) is tested whatever the rounding of the angles. Testing a beam too many costs a
 # little time, never a different range.
 _DISC_MARGIN = 1e-6
 
 
-# Compiled at import from numba's on-disk cache, as gridcast._cast (explicit signature).
+# Compiled at import from numba's on-disk cache, as gridcast._cast (explicit signatures).
 @numba.njit(
-    "i8(f8[:, ::1], f8[::1], i4[::1], i8, f8[::1], f8, f8, f8, f8[::1], f8[::1], u1[::1], i8[::1], f8[:, ::1])",
+    "i8(i8, i8, i8, f8[:, ::1], f8[:, ::1], f8[:, ::1], i4[::1], f8[::1], f8[:, ::1], f8[::1])", cache=True, nogil=True
+)
+def _test(g, lo, hi, geom_xpos, geom_xmat, geom_size, geom_type, pnt, vec, dist):  # pragma: no cover - compiled
+    """Beams lo..hi against geom g: dist[i] becomes the nearer of itself and the hit; returns the tests made."""
+    pos, mat, size, at = geom_xpos[g].ctypes.data, geom_xmat[g].ctypes.data, geom_size[g].ctypes.data, pnt.ctypes.data
+    kind = geom_type[g]
+    for i in range(lo, hi + 1):
+        hit = ray_geom(pos, mat, size, at, vec[i].ctypes.data, kind, numba.uintp(0))  # NULL: no normal
+        if hit >= 0.0 and (dist[i] < 0.0 or hit < dist[i]):
+            dist[i] = hit
+    return max(hi - lo + 1, 0)
+
+
+@numba.njit(
+    "i8(f8[:, ::1], f8[:, ::1], f8[:, ::1], i4[::1], f8[::1], i4[::1], i8, f8[::1], f8, f8, f8, f8[:, ::1], f8[::1])",
     cache=True, nogil=True,
 )
-def _beams_to_cast(geom_xpos, geom_rbound, geom_bodyid, exclude, pnt, first_angle, increment, max_range,
-                   cos, sin, cast, index, vec):  # pragma: no cover - compiled
-    """Which beams can hit a geom of the scene: their indices into `index[:count]` and their directions
-    into `vec[:count]`; returns `count`. Beam i points at `first_angle + i * increment` rad, lies in the
+def _cast_bodies(geom_xpos, geom_xmat, geom_size, geom_type, geom_rbound, geom_bodyid, exclude, pnt, first_angle,
+                 increment, max_range, vec, dist):  # pragma: no cover - compiled
+    """dist[i]: the distance along beam i (from `pnt`, direction `vec[i]`) to the nearest scene geom it
+    hits, -1 for none, testing each geom (mju_rayGeom) only against the beams that can reach it; returns
+    the number of (beam, geom) tests. Beam i points at `first_angle + i * increment` rad, lies in the
     plane z = pnt[2] and ends at `max_range` m. Geoms of body `exclude` are skipped; a geom with
     geom_rbound 0 (a plane: MuJoCo's convention for unbounded), a lidar inside a geom's disc and a
-    single beam (increment 0) get every beam."""
-    n = cos.shape[0]
-    cast[:] = 0
-    every = increment <= 0.0
-    for g in range(0 if every else geom_xpos.shape[0]):
+    single beam (increment 0) test every beam against that geom."""
+    n = vec.shape[0]
+    dist[:] = -1.0
+    tests = 0
+    for g in range(geom_xpos.shape[0]):
         if geom_bodyid[g] == exclude:
             continue
         rbound = geom_rbound[g]
-        if rbound <= 0.0:
-            every = True
-            break
+        if rbound <= 0.0 or increment <= 0.0:
+            tests += _test(g, 0, n - 1, geom_xpos, geom_xmat, geom_size, geom_type, pnt, vec, dist)
+            continue
         dz = geom_xpos[g, 2] - pnt[2]
         if abs(dz) > rbound + _DISC_MARGIN:
             continue  # the bounding sphere does not reach the beam plane (a drone above the robots)
         radius = math.sqrt(max(rbound * rbound - dz * dz, 0.0)) + _DISC_MARGIN  # of the disc in the plane
         dx = geom_xpos[g, 0] - pnt[0]
         dy = geom_xpos[g, 1] - pnt[1]
-        dist = math.sqrt(dx * dx + dy * dy)
-        if dist - radius > max_range:
+        d = math.sqrt(dx * dx + dy * dy)
+        if d - radius > max_range:
             continue  # beyond the beams' reach
-        if dist <= radius:
-            every = True  # the lidar is inside the disc: any beam may hit
-            break
-        half = math.asin(radius / dist)
+        if d <= radius:  # the lidar is inside the disc: any beam may hit
+            tests += _test(g, 0, n - 1, geom_xpos, geom_xmat, geom_size, geom_type, pnt, vec, dist)
+            continue
+        half = math.asin(radius / d)
         centre = (math.atan2(dy, dx) - first_angle) % (2.0 * math.pi)  # from the first beam, in [0, 2 pi)
         for turn in (-2.0 * math.pi, 0.0, 2.0 * math.pi):  # the disc's interval may wrap past either end
-            lo = math.ceil((centre - half + turn) / increment)
-            hi = math.floor((centre + half + turn) / increment)
-            for i in range(max(lo, 0), min(hi, n - 1) + 1):
-                cast[i] = 1
-    count = 0
-    for i in range(n):
-        if every or cast[i]:
-            index[count] = i
-            vec[count, 0] = cos[i]
-            vec[count, 1] = sin[i]
-            vec[count, 2] = 0.0
-            count += 1
-    return count
+            lo = max(math.ceil((centre - half + turn) / increment), 0)
+            hi = min(math.floor((centre + half + turn) / increment), n - 1)
+            tests += _test(g, lo, hi, geom_xpos, geom_xmat, geom_size, geom_type, pnt, vec, dist)
+    return tests
 
 
-@numba.njit("void(f8[::1], i8[::1], f8[::1], i8, f8, f8[::1])", cache=True, nogil=True)
-def _nearer(wall, index, dist, count, max_range, ranges):  # pragma: no cover - compiled
-    """ranges[i]: the nearer of the wall's range `wall[i]` and MuJoCo's `dist[j]` for beam i = index[j]
-    (j < count; dist < 0: no hit), inf beyond `max_range` m."""
+@numba.njit("void(f8[::1], f8[::1], f8, f8[::1])", cache=True, nogil=True)
+def _nearer(wall, dist, max_range, ranges):  # pragma: no cover - compiled
+    """ranges[i]: the nearer of the wall's range `wall[i]` and MuJoCo's `dist[i]` (dist < 0: no hit), inf
+    beyond `max_range` m."""
     for i in range(wall.shape[0]):
         w = wall[i]
-        ranges[i] = w if w <= max_range else math.inf
-    for j in range(count):
-        d = dist[j]
-        if 0.0 <= d <= max_range and d < ranges[index[j]]:
-            ranges[index[j]] = d
+        r = w if w <= max_range else math.inf
+        d = dist[i]
+        if 0.0 <= d <= max_range and d < r:
+            r = d
+        ranges[i] = r
