@@ -14,7 +14,7 @@ from rescuemesh.mesh import MeshNode, NetworkStack
 from rescuemesh.protocol import Endpoint
 from rescuemesh.radio import DiscChannel
 from rescuemesh.robot import RobotBrain, robot_address
-from rescuemesh.transport import SimMedium
+from rescuemesh.transport.sim_medium import SimMedium
 
 DT = 0.05
 

@@ -35,7 +35,7 @@ from rescuemesh.robot.sensor_codec import (
     encode_scan,
     image_is_informative,
 )
-from rescuemesh.transport import SimMedium
+from rescuemesh.transport.sim_medium import SimMedium
 
 
 def _scene(width: int = 160, height: int = 120) -> np.ndarray:

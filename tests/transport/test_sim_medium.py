@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from rescuemesh.radio import DiscChannel, LossCause, Reception, ble_adv_airtime_s
-from rescuemesh.transport import AirTiming, SimMedium
+from rescuemesh.transport.sim_medium import AirTiming, SimMedium
 
 BROADCAST = 0xFF
 NO_JITTER = AirTiming(adv_delay_max_s=0.0, relay_delay_max_s=0.0)

@@ -47,7 +47,7 @@ WARNING_KINDS = frozenset({"command_given_up", "follow_given_up", "command_faile
                            "command_rejected", "link_lost", "transfer_failed", "forward_undelivered",
                            "frame_rejected", "peer_restarted", "waypoints_skipped"})
 
-#: /radio/frames: one message per transmission on the air (rescuemesh.transport.AirRecord, decoded).
+#: /radio/frames: one message per transmission on the air (rescuemesh.transport.sim_medium.AirRecord, decoded).
 RADIO_SCHEMA = {
     "title": "rescuemesh.RadioFrame", "type": "object",
     "properties": {

@@ -17,7 +17,7 @@ from rescuemesh.mesh.keys import team_key_from_seed
 from rescuemesh.mesh.security import FrameSealer
 from rescuemesh.protocol import CommandReceived, ConfirmReceived, Endpoint, EndpointConfig, ResultCode, Stop
 from rescuemesh.radio import DiscChannel
-from rescuemesh.transport import SimMedium
+from rescuemesh.transport.sim_medium import SimMedium
 
 #: Harness step in s: receivers answer within this of a command's arrival.
 STEP_S = 0.001

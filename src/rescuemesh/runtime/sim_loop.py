@@ -23,7 +23,7 @@ from rescuemesh.robot import RobotBrain, robot_address
 from rescuemesh.runtime.assembly import assemble_robot, team_sealer
 from rescuemesh.runtime.config import RadioKind, SimConfig  # noqa: F401  (RadioKind: re-exported)
 from rescuemesh.sim import World
-from rescuemesh.transport import SimMedium
+from rescuemesh.transport.sim_medium import SimMedium
 
 
 @dataclass(frozen=True, slots=True)

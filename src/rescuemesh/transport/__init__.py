@@ -1,9 +1,7 @@
 """Transports: thin pumps that move frames between sans-IO network stacks.
 
-Owns: the simulated radio medium (airtime, queues, collisions), the BLE bearer (bumble, in
-transport.ble, imported on demand). Must not know: robots, behaviours, what frames mean.
+Owns: the simulated radio medium (airtime, queues, collisions; transport.sim_medium, which needs
+the sim extra through the channel model), the Zenoh link (transport.zenoh_link) and the BLE bearer
+(bumble, transport.ble). Each is imported from its module, so a robot process that uses one
+loads none of the others' dependencies. Must not know: robots, behaviours, what frames mean.
 """
-
-from rescuemesh.transport.sim_medium import AirRecord, AirTiming, MediumStats, NetworkStack, SimMedium
-
-__all__ = ["AirRecord", "AirTiming", "MediumStats", "NetworkStack", "SimMedium"]
