@@ -55,7 +55,14 @@ class LaserScan:
             ok &= np.isfinite(r)
         r = r[ok]
         a = _beam_angles(self.angle_min, self.angle_increment, len(ok))[ok] + self.origin.yaw
-        return np.stack([self.origin.x + r * np.cos(a), self.origin.y + r * np.sin(a)], axis=1)
+        # x and y each computed in place in one contiguous row: the result is the transpose (its
+        # columns contiguous, as its users read them)
+        xy = np.empty((2, len(r)))
+        np.multiply(r, np.cos(a, out=xy[0]), out=xy[0])
+        np.multiply(r, np.sin(a, out=xy[1]), out=xy[1])
+        xy[0] += self.origin.x
+        xy[1] += self.origin.y
+        return xy.T
 
 
 @functools.lru_cache(maxsize=16)

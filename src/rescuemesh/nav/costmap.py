@@ -87,6 +87,7 @@ class Costmap:
         # flat: cells where a scan point is an obstacle of its own (not on or next to a static one)
         self._stampable = (self.static_clearance >= 1.5 * self.resolution).reshape(-1)
         self._obstacle_cells = np.zeros(0, dtype=np.int64)
+        self._obstacle_rc = np.divmod(self._obstacle_cells, self.shape[1])  # their rows and columns
         self.obstacle_points = np.zeros((0, 2))
         self.obstacle_stamp: float | None = None
         self._kernel = self._make_kernel()
@@ -168,9 +169,9 @@ class Costmap:
     def _near_obstacle(self, rows: np.ndarray, cols: np.ndarray) -> bool:
         """Whether any cell (rows[i], cols[i]) lies in the lethal part of an obstacle cell's kernel:
         the same answer as the stamped array, without stamping the whole map."""
-        w = self.shape[1]
-        dr = rows[:, None] - (self._obstacle_cells // w)[None, :]
-        dc = cols[:, None] - (self._obstacle_cells % w)[None, :]
+        orow, ocol = self._obstacle_rc
+        dr = rows[:, None] - orow[None, :]
+        dc = cols[:, None] - ocol[None, :]
         n = self._lethal_disc.shape[0] // 2
         near = (np.abs(dr) <= n) & (np.abs(dc) <= n)
         return bool(near.any() and self._lethal_disc[dr[near] + n, dc[near] + n].any())
@@ -209,21 +210,22 @@ class Costmap:
         out.__dict__.update(self.__dict__)
         out.obstacle_stamp = now
         # this runs for every scan, mostly on points of static walls: the cheap tests first, the
-        # clear radius on the rest
-        rows, cols, keep = self.cells_of(pts)
-        flat = rows[keep] * self.shape[1] + cols[keep]
+        # clear radius on the rest; the points kept are followed by index (cheaper than masks on
+        # the (N, 2) array)
+        rows, cols, inside = self.cells_of(pts)
+        kept = np.flatnonzero(inside)
+        flat = rows[kept] * self.shape[1] + cols[kept]
         stampable = self._stampable[flat]
-        keep[keep] = stampable
-        flat = flat[stampable]
+        kept, flat = kept[stampable], flat[stampable]
         if clear_center is not None and clear_radius > 0.0 and len(flat):
-            near = pts[keep]
+            near = pts[kept]
             far = np.hypot(near[:, 0] - clear_center[0], near[:, 1] - clear_center[1]) > clear_radius
-            keep[keep] = far
-            flat = flat[far]
-        out.obstacle_points = pts[keep]
+            kept, flat = kept[far], flat[far]
+        out.obstacle_points = pts[kept]
         out._cost = out._lethal = None  # built on first use: a blocked-path check does not need them
         out._window = None
         out._obstacle_cells = np.unique(flat)
+        out._obstacle_rc = np.divmod(out._obstacle_cells, self.shape[1])
         if len(flat) == 0:
             out._cost, out._lethal = self.static_cost, self._static_lethal
         return out
@@ -268,14 +270,12 @@ class Costmap:
     def _stamped(self, r0: int, r1: int, c0: int, c1: int) -> np.ndarray:
         """A copy of `static_cost[r0:r1, c0:c1]` (within the grid) with the inflation kernel of
         every obstacle cell stamped where it reaches (the highest cost wins)."""
-        w = self.shape[1]
         cost = self.static_cost[r0:r1, c0:c1].copy()
-        flat = self._obstacle_cells
-        if len(flat) == 0:
+        if len(self._obstacle_cells) == 0:
             return cost
         dr, dc, kval = self._kernel
         n = self._kernel_reach
-        orow, ocol = flat // w, flat % w
+        orow, ocol = self._obstacle_rc
         near = (orow >= r0 - n) & (orow < r1 + n) & (ocol >= c0 - n) & (ocol < c1 + n)  # reaching the window
         rr = (orow[near] - r0)[:, None] + dr[None, :]
         cc = (ocol[near] - c0)[:, None] + dc[None, :]

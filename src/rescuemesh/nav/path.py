@@ -35,7 +35,10 @@ class Path:
     @classmethod
     def from_points(cls, points: np.ndarray) -> "Path":
         pts = np.asarray(points, dtype=float).reshape(-1, 2)
-        return cls(points=pts, length_m=float(cumulative_lengths(pts)[-1]))
+        cum = cumulative_lengths(pts)
+        path = cls(points=pts, length_m=float(cum[-1]))
+        path.__dict__["cum"] = cum  # the cached property, known already
+        return path
 
     @property
     def end(self) -> np.ndarray:
