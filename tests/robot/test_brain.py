@@ -12,6 +12,7 @@ from rescuemesh.protocol import (Confirm, ConfirmReceived, Data, DataKind, Endpo
                                  MessageType, MoveAround, Pose, Reason, ResultCode, Return, ShowCam, ShowScan, Stop,
                                  encode_inner)
 from rescuemesh.protocol.codec import decode_frame
+from rescuemesh.robot import BrainConfig
 from rescuemesh.robot.policy import Rank
 
 ONE, TWO = 1, 2
@@ -225,6 +226,17 @@ def test_forward_msg_is_delivered_to_the_target_and_the_sender_gets_done():
     assert (sent.result, sent.reason) == (ResultCode.DONE, Reason.NONE)
     assert "stopped" in team.kinds("robot_3")  # the inner Stop reached robot_3, from robot_2
     assert "forward_sent" in team.kinds("robot_2") and "forward_ended" in team.kinds("robot_2")
+
+
+def test_a_forwarders_final_report_goes_out_in_copies_like_any_final_report():
+    # this used to go out once: a lost DONE left the sender at ACCEPTED for good (no resend)
+    team = three_in_a_row()
+    team.brains["robot_1"].send(TWO, ForwardMsg(3, encode_inner(Stop())), 0.0)
+    team.run(3.0)
+    reports = [decode_frame(r.frame)[1] for r in team.link.records
+               if (r.transmitter, r.src, r.dst, r.relayed) == (TWO, TWO, ONE, False)]
+    done = [m for m in reports if isinstance(m, Confirm) and m.result == ResultCode.DONE]
+    assert len(done) == BrainConfig().final_report_copies == 3
 
 
 def test_forward_msg_waits_for_an_unreachable_target_and_delivers_when_it_comes_back():

@@ -475,8 +475,7 @@ class RobotBrain(SensorCommands):
     def _report_forward(self, ended, now: float, detail: str) -> None:
         job = ended.job
         progress = 100 if ended.result == ResultCode.DONE else 255
-        self.endpoint.confirm(job.sender, job.seq, MessageType.FORWARD_MSG, ended.result, now,
-                              progress=progress, reason=ended.reason)
+        self._final_report(job.sender, job.seq, MessageType.FORWARD_MSG, ended.result, ended.reason, now, progress)
         self._note(now, "forward_ended", f"{ended.result.name} {ended.reason.name}: {detail}".replace(" NONE", ""))
 
     def _stopped_since(self, peer: int, since_s: float) -> bool:
@@ -525,13 +524,17 @@ class RobotBrain(SensorCommands):
         self.finished.append(FinishedBehaviour(running.behaviour.name, running.started_s, now, result, reason, code))
         self._note(now, "behaviour_ended", f"{running.behaviour.name}: {result.name} {reason}".rstrip())
         if running.commander is not None and running.seq is not None:
-            # Report the final result to the commander (best effort: an unsolicited Confirm).
-            self.endpoint.confirm(running.commander, running.seq, running.msg_type, result, now,
-                                  progress=running.behaviour.progress() if result != ResultCode.DONE else 100,
-                                  reason=code)
-            if self.config.final_report_copies > 1:
-                self._repeats.append((now + self.config.final_report_spacing_s, running.commander, running.seq,
-                                      self.config.final_report_copies - 1))
+            self._final_report(running.commander, running.seq, running.msg_type, result, code, now,
+                               progress=running.behaviour.progress() if result != ResultCode.DONE else 100)
+
+    def _final_report(self, commander: int, seq: int, msg_type: MessageType, result: ResultCode, code: Reason,
+                      now: float, progress: int) -> None:
+        """Report a command's final result to its commander: an unsolicited Confirm, not confirmed
+        in turn, so it goes out `final_report_copies` times, `final_report_spacing_s` apart."""
+        self.endpoint.confirm(commander, seq, msg_type, result, now, progress=progress, reason=code)
+        if self.config.final_report_copies > 1:
+            self._repeats.append((now + self.config.final_report_spacing_s, commander, seq,
+                                  self.config.final_report_copies - 1))
 
     def _note(self, now: float, kind: str, detail: str = "") -> None:
         self.log.append(BrainEvent(round(now, 3), self.name, kind, detail))
