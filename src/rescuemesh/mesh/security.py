@@ -142,29 +142,23 @@ class FrameSealer:
 
     def seal(self, frame: bytes, epoch: int) -> bytes:
         """See _seal below; the result is remembered (`remember`)."""
-        if not self._remember:
-            return self._seal(frame, epoch)
-        key = (bytes(frame), epoch)
-        sealed = self._sealed.get(key)
-        if sealed is None:
-            sealed = self._keep(self._sealed, key, self._seal(frame, epoch))
-        return sealed
+        return self._remembered(self._sealed, self._seal, frame, epoch)
 
     def open(self, frame: bytes, epoch: int) -> bytes:
         """See _open below; a result is remembered (`remember`), an AuthenticationError is not."""
-        if not self._remember:
-            return self._open(frame, epoch)
-        key = (bytes(frame), epoch)
-        opened = self._opened.get(key)
-        if opened is None:
-            opened = self._keep(self._opened, key, self._open(frame, epoch))
-        return opened
+        return self._remembered(self._opened, self._open, frame, epoch)
 
-    def _keep(self, memory: dict[tuple[bytes, int], bytes], key: tuple[bytes, int], value: bytes) -> bytes:
-        memory[key] = value
-        if len(memory) > self._remember:
-            del memory[next(iter(memory))]  # the oldest
-        return value
+    def _remembered(self, memory: dict[tuple[bytes, int], bytes], compute: Callable[[bytes, int], bytes],
+                    frame: bytes, epoch: int) -> bytes:
+        if not self._remember:
+            return compute(frame, epoch)
+        key = (bytes(frame), epoch)
+        result = memory.get(key)
+        if result is None:
+            result = memory[key] = compute(frame, epoch)
+            if len(memory) > self._remember:
+                del memory[next(iter(memory))]  # the oldest
+        return result
 
     def _seal(self, frame: bytes, epoch: int) -> bytes:
         """The AUTH frame for CRC frame `frame` (an unsegmented frame of at most 20 bytes, or a segment
