@@ -118,7 +118,7 @@ class Costmap:
         rows = np.floor((xy[:, 1] - self.grid.origin_y) / self.resolution).astype(np.int64)
         cols = np.floor((xy[:, 0] - self.grid.origin_x) / self.resolution).astype(np.int64)
         h, w = self.shape
-        inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+        inside = (rows.view(np.uint64) < h) & (cols.view(np.uint64) < w)  # a negative index is huge unsigned
         return rows, cols, inside
 
     # -- queries --------------------------------------------------------------------------------
