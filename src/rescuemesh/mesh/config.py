@@ -75,9 +75,9 @@ class MeshConfig:
     heartbeat_ttl: TTL our Heartbeats go out with and announce (Heartbeat Publication TTL, Mesh
         Profile 4.2.17; None: initial_ttl): 3 reaches partners two hops away, not a team of 30.
     heartbeat_relay_delay_scale: a relayed Heartbeat waits the caller's relay delay times this
-        (10: 0..100 ms), so that most relays hear another's copy first and cancel theirs (counter-
+        (5: 0..50 ms), so that most relays hear another's copy first and cancel theirs (counter-
         based suppression); commands keep the short delay. 30 robots: 6.7 relays a beat at 1,
-        about 4 at 5, 3 at 10 (docs/mesh.md 12); liveness allows 3.5 s, so the wait costs nothing.
+        about 4 at 5 (docs/mesh.md 12 says why not 10).
     cache_size: network message cache entries (Mesh Profile 1.0, 3.4.6.5; Zephyr keeps 10). 128
         covers the life of a flood (TTL x relay delay, about 0.2 s) at a few hundred frames per
         second, i.e. 30 robots streaming plus a segmented transfer (docs/mesh.md, "The cache").
@@ -110,7 +110,7 @@ class MeshConfig:
     unicast_ttl_slack: int = 0
     sparse_neighbours: int = 6
     heartbeat_ttl: int | None = 3
-    heartbeat_relay_delay_scale: float = 10.0
+    heartbeat_relay_delay_scale: float = 5.0
     cache_size: int = 128
     cache_lifetime_s: float = 0.75
     heartbeat_period_s: float = 1.0
