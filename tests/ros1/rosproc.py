@@ -189,6 +189,16 @@ class RosSession:
         name = "echo" + topic.replace("/", "_")
         return self.start(name, ["rostopic", "echo", *(["-n", str(count)] if count else []), topic])
 
+    def wait_linked(self, topic: str, timeout_s: float = 30.0) -> None:
+        """Until `topic` has a publisher and a subscriber registered with the master (`rostopic
+        info`): a subscriber that registered after a message was published never sees it."""
+        def linked() -> bool:
+            info = subprocess.run(["rostopic", "info", topic], env=self.env, capture_output=True, text=True,
+                                  timeout=10)
+            return info.returncode == 0 and "Publishers: None" not in info.stdout \
+                and "Subscribers: None" not in info.stdout
+        wait_for(linked, timeout_s, f"a publisher and a subscriber on {topic}", poll_s=0.2)
+
     def rostopic_pub(self, topic: str, yaml: str, timeout_s: float = 20.0) -> None:
         """`rostopic pub -1 topic rescuemesh_msgs/Command YAML`, as in docs/ros1.md; waits for it."""
         proc = self.start("rostopic_pub", ["rostopic", "pub", "-1", topic, "rescuemesh_msgs/Command", yaml])

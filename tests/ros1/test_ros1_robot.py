@@ -23,6 +23,8 @@ def test_two_ros_robots_as_processes_over_zenoh_complete_a_follow(ros):
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     echo = ros.echo("/robot_2/comm_protocol/command", 3)
     follower = _robot(ros, "robot_2", "--listen", endpoint)
+    # this used to race: a Follow published before `rostopic echo` had subscribed was never echoed
+    ros.wait_linked("/robot_2/comm_protocol/command")
     leader = _robot(ros, "robot_1", "--connect", endpoint, "--follow", "robot_2", "--goal", "3,0")
     assert leader.wait(120) == 0, leader.stdout()[-2000:] + leader.stderr()[-2000:]
     assert follower.wait(30) == 0, follower.stdout()[-2000:] + follower.stderr()[-2000:]
