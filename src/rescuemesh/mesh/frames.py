@@ -8,8 +8,8 @@ from __future__ import annotations
 import struct
 import zlib
 from dataclasses import dataclass
-from functools import lru_cache
 from enum import Enum
+from functools import lru_cache
 
 from rescuemesh.protocol import (
     BROADCAST,
