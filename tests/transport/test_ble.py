@@ -208,6 +208,28 @@ def test_with_no_repeat_window_every_advertising_event_is_delivered_but_no_scan_
     assert stats.scan_responses_ignored == len(heard)
 
 
+def test_frames_queued_at_once_go_out_in_order_one_hold_apart():
+    # One advertiser, one frame on air at a time: each stays hold_s (its advertising events) before
+    # the next starts. Load can only stretch the gaps, so they are bounded from below.
+    async def scenario():
+        link = new_virtual_link()
+        loop = asyncio.get_running_loop()
+        heard: list[tuple[bytes, float]] = []
+        async with BleBearer(None, link=link) as a, BleBearer(
+            None, link=link, on_frame=lambda d, r: heard.append((d, loop.time()))
+        ):
+            frames = [bytes([7, i]) for i in range(4)]
+            for frame in frames:
+                a.send(frame)
+            await _wait_until(lambda: len(heard) >= len(frames), timeout_s=5.0)
+        return frames, heard
+
+    frames, heard = run(scenario())
+    assert [data for data, _ in heard] == frames
+    gaps = [later - earlier for (_, earlier), (_, later) in zip(heard, heard[1:])]
+    assert min(gaps) >= 0.9 * BleTiming().hold_s, gaps
+
+
 def test_stop_in_the_middle_of_sending_is_prompt_and_leaves_no_task():
     # This used to hang until the caller's timeout now and then: stop() cancelled the sender in the
     # middle of bumble's HCI commands, and the cancellation could be swallowed.
@@ -265,7 +287,7 @@ def test_a_bad_hci_spec_is_a_one_line_setup_error():
 # --- ble-check -------------------------------------------------------------------------------------
 
 
-def test_ble_check_on_virtual_controllers_confirms_everything_with_sensible_latency():
+def test_ble_check_on_virtual_controllers_confirms_everything():
     report = run(run_ble_check(updates=2, timeout_s=10.0), timeout_s=20.0)
     assert report.passed, report.summary()
     assert (report.commands_sent, report.commands_confirmed) == (4, 4)  # Follow x 2, Stop x 2
@@ -273,10 +295,11 @@ def test_ble_check_on_virtual_controllers_confirms_everything_with_sensible_late
     assert report.resends == 0
     assert report.frames_advertised == report.frames_sent  # nothing left in a queue
     assert report.receptions == report.receptions_expected == 2 * report.frames_sent  # none lost
-    hold_ms = BleTiming().hold_s * 1000.0
-    # the first frame in a queue goes out at once; one queued behind k others waits k holds
-    assert 0.0 < report.frame_latency_p50_ms < hold_ms
-    assert report.frame_latency_p50_ms <= report.frame_latency_p95_ms < 3 * hold_ms
+    # Wall-clock latencies are figures the report prints, not bounds to test: a loaded machine
+    # stretches them (p95 250 ms once, beside other jobs). What must hold is that no frame and no
+    # confirm took longer than the ack timeout, as nothing was resent; the queue's spacing is
+    # tested from below in test_frames_queued_at_once_go_out_in_order_one_hold_apart.
+    assert 0.0 < report.frame_latency_p50_ms <= report.frame_latency_p95_ms < BLE_ACK_TIMEOUT_S * 1000.0
     assert 0.0 < report.confirm_rtt_p50_ms <= report.confirm_rtt_p95_ms < BLE_ACK_TIMEOUT_S * 1000.0
     assert "commands 4/4 confirmed" in report.summary()
 
