@@ -278,7 +278,7 @@ def _run(args) -> int:
                               relay=not args.no_relay, outage_s=args.outage, robots=args.robots, secure=not args.insecure,
                               team_key=key, key_source=key_source)
     out = _writable_folder(args.out or Path("out") / args.scenario)
-    processes, map_model = None, None
+    processes, scenario = None, None
     if args.command == "world":
         from rescuemesh.runtime.spawn import ProcessOptions
 
@@ -295,12 +295,12 @@ def _run(args) -> int:
         print(f"live: Foxglove WebSocket on ws://127.0.0.1:{args.live_port} while the run lasts "
               f"(Foxglove: Open connection, Foxglove WebSocket)", flush=True)
     if args.processes and args.command == "run":
-        processes, map_model = _early_team(args, options, out)  # before the world's imports: robots start
+        processes, scenario = _early_team(args, options, out)  # before the world's imports: robots start
     from rescuemesh.scenarios.runner import run_scenario
 
     progress = None if args.quiet else _Progress(args.scenario)
     try:
-        outcome = run_scenario(args.scenario, options, map_path=args.map, map_model=map_model, out_dir=out,
+        outcome = run_scenario(args.scenario, options, map_path=args.map, scenario=scenario, out_dir=out,
                                progress=progress, processes=processes, realtime=args.realtime,
                                live_port=args.live_port if args.live else None)
     except ControlError as error:
@@ -324,22 +324,22 @@ def _run(args) -> int:
 def _early_team(args, options, out: Path):
     """`run --processes`: the team's robot processes, started now at a free endpoint, before this
     process imports MuJoCo and builds the world (a robot takes about as long to import and connect).
-    Returns the run's ProcessOptions and the map, loaded once for the team and the run."""
+    Returns the run's ProcessOptions and the scenario, built once for the team and the run."""
     from rescuemesh.maps import MapError, load_map, office_map_path
     from rescuemesh.runtime.spawn import ProcessOptions, RobotProcesses, free_endpoint
     from rescuemesh.scenarios import ScenarioError, get_scenario
 
     try:
         cls = get_scenario(args.scenario)
-        map_model = load_map(args.map or office_map_path())
-        names = list(cls(options, map_model).starts()) if cls.runs_as_processes else []
+        scenario = cls(options, load_map(args.map or office_map_path()))
+        names = list(scenario.starts()) if cls.runs_as_processes else []
     except (ScenarioError, MapError, ValueError) as error:
         raise UsageError(str(error)) from None
     listen = free_endpoint()
     team = RobotProcesses(listen, "default", out / "processes", key_file=args.key)
     for name in names:
         team.start(name)
-    return ProcessOptions(listen=listen, key_file=args.key, team=team), map_model
+    return ProcessOptions(listen=listen, key_file=args.key, team=team), scenario
 
 
 def _endpoint(text: str) -> str:

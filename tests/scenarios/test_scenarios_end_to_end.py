@@ -269,3 +269,20 @@ def test_convoy_on_a_map_without_rooms_is_judged_on_the_unbroken_chain(tmp_path)
     assert [c["check"].split(" (")[0] for c in result["criteria"]] == [
         "Follow confirmed ACCEPTED on every link", "leader drove its route", "every gap ends between 0.4 and 1.2 m",
         "no collision"]
+
+
+def test_a_run_uses_the_scenario_it_is_given_and_refuses_one_built_otherwise():
+    # run --processes builds the scenario first (its robots' names start the processes), then runs it
+    from rescuemesh.maps import load_map, office_map_path
+    from rescuemesh.scenarios import ScenarioOptions, get_scenario
+    from rescuemesh.scenarios.runner import run_scenario
+
+    options = ScenarioOptions(time_limit_s=1.0)
+    scenario = get_scenario("follow")(options, load_map(office_map_path()))
+    outcome = run_scenario("follow", options, scenario=scenario)
+    assert scenario._request is not None  # this very object's tick ran
+    assert outcome.result["sim_time_s"] == pytest.approx(1.0)
+    with pytest.raises(ValueError, match="not built as 'stop'"):
+        run_scenario("stop", options, scenario=scenario)
+    with pytest.raises(ValueError, match="not built as 'follow' with these options"):
+        run_scenario("follow", ScenarioOptions(time_limit_s=1.0), scenario=scenario)

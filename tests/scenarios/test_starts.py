@@ -66,3 +66,16 @@ def test_the_cli_prints_the_clearance_in_one_line(tmp_path, capsys):
     assert main(["run", "follow", "--start", "robot_2=0.15,4.6,0", "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "robot_2 (0.15, 4.60) is 0.05 m from an obstacle" in err
+
+
+def test_starts_are_checked_once_and_each_call_gets_its_own_dict(office, monkeypatch):
+    # run --processes asks for the starts before the world is built, and the run asks again:
+    # a convoy of 30 took 0.1 s per check
+    scenario = get_scenario("convoy")(ScenarioOptions(robots=12), office)
+    checks = []
+    check = type(scenario)._check_starts
+    monkeypatch.setattr(type(scenario), "_check_starts", lambda self: checks.append(1) or check(self))
+    first = scenario.starts()
+    first.pop("robot_1")
+    assert scenario.starts() == check(scenario) and "robot_1" in scenario.starts()
+    assert len(checks) == 1

@@ -13,11 +13,11 @@ from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
 
-from rescuemesh.maps import MapModel, load_map, office_map_path
+from rescuemesh.maps import load_map, office_map_path
 from rescuemesh.report import build_result, plot_timeline, plot_trajectories, write_result
 from rescuemesh.runtime import SimRuntime
 from rescuemesh.runtime.spawn import ProcessOptions
-from rescuemesh.scenarios import ScenarioError, ScenarioOptions, Verdict, get_scenario
+from rescuemesh.scenarios import Scenario, ScenarioError, ScenarioOptions, Verdict, get_scenario
 
 #: How often the progress callback is called, in simulated seconds.
 PROGRESS_PERIOD_S = 1.0
@@ -35,15 +35,18 @@ def run_scenario(name: str, options: ScenarioOptions, *, map_path: Path | None =
                  out_dir: Path | None = None,
                  progress: Callable[[float, float], None] | None = None,
                  processes: ProcessOptions | None = None, realtime: bool = False,
-                 live_port: int | None = None, map_model: MapModel | None = None) -> RunOutcome:
+                 live_port: int | None = None, scenario: Scenario | None = None) -> RunOutcome:
     """Run scenario `name`. Raises ScenarioError / MapError / ValueError for bad options (a `live_port`
     that cannot be served too). With `out_dir`, the run is recorded to `out_dir/run.mcap`; with
     `live_port`, the same channels are served on ws://127.0.0.1:live_port during the run.
-    `map_model`: the map already loaded from `map_path` (not loaded again)."""
+    `scenario`: the scenario already built from `name`, `options` and the map (neither is built
+    again: `run --processes` needs its robots' names before the world is built)."""
     cls = get_scenario(name)
-    if map_model is None:
-        map_model = load_map(map_path or office_map_path())
-    scenario = cls(options, map_model)
+    if scenario is None:
+        scenario = cls(options, load_map(map_path or office_map_path()))
+    elif type(scenario) is not cls or scenario.options is not options:
+        raise ValueError(f"the scenario given was not built as {name!r} with these options")
+    map_model = scenario.map
     config = scenario.sim_config()
     if processes is not None and not cls.runs_as_processes:
         from rescuemesh.scenarios import SCENARIOS
