@@ -136,3 +136,24 @@ def test_the_obstacle_layer_keeps_the_points_off_static_walls_outside_the_clear_
         np.testing.assert_array_equal(cm.obstacle_points, pts[keep])
         np.testing.assert_array_equal(cm.obstacle_cells, np.unique(rows[keep] * room_costmap.shape[1] + cols[keep]))
         assert (cm.cost is room_costmap.static_cost) == (not keep.any())
+
+
+def test_stamped_costs_are_each_cells_highest_kernel_value(room_costmap):
+    # the stamping against a plain loop over obstacle cells and kernel offsets, whole map and windows
+    rng = np.random.default_rng(5)
+    h, w = room_costmap.shape
+    dr, dc, kval = room_costmap._kernel
+    for trial in range(10):
+        points = rng.uniform((0.0, 0.0), (6.0, 4.0), size=(int(rng.integers(1, 30)), 2))
+        cm = room_costmap.with_obstacles(points, float(trial))
+        want = room_costmap.static_cost.copy()
+        for cell in cm.obstacle_cells:
+            r, c = divmod(int(cell), w)
+            for i in range(len(dr)):
+                rr, cc = r + dr[i], c + dc[i]
+                if 0 <= rr < h and 0 <= cc < w:
+                    want[rr, cc] = max(want[rr, cc], kval[i])
+        r0, c0 = int(rng.integers(-5, h - 5)), int(rng.integers(-5, w - 5))
+        r1, c1 = r0 + int(rng.integers(1, 40)), c0 + int(rng.integers(1, 60))
+        np.testing.assert_array_equal(cm.cost_in(r0, r1, c0, c1), want[max(r0, 0):r1, max(c0, 0):c1])
+        np.testing.assert_array_equal(cm.cost, want)

@@ -281,20 +281,31 @@ class Costmap:
 
     def _stamped(self, r0: int, r1: int, c0: int, c1: int) -> np.ndarray:
         """A copy of `static_cost[r0:r1, c0:c1]` (within the grid) with the inflation kernel of
-        every obstacle cell stamped where it reaches (the highest cost wins)."""
-        cost = self.static_cost[r0:r1, c0:c1].copy()
+        every obstacle cell stamped where it reaches (the highest cost wins).
+
+        The kernels are stamped whole into a copy padded by twice the kernel's reach on every
+        side (an obstacle cell reaching the window lies within one reach of it, its kernel within
+        two), then the window is cut out: no kernel cell needs a bounds test, and each window
+        cell gets the maximum of the same values as when the cells off the window are left out."""
+        cost = self.static_cost[r0:r1, c0:c1]
         if len(self._obstacle_cells) == 0:
-            return cost
+            return cost.copy()
         dr, dc, kval = self._kernel
         n = self._kernel_reach
         orow, ocol = self._obstacle_rc
-        near = (orow >= r0 - n) & (orow < r1 + n) & (ocol >= c0 - n) & (ocol < c1 + n)  # reaching the window
-        rr = (orow[near] - r0)[:, None] + dr[None, :]
-        cc = (ocol[near] - c0)[:, None] + dc[None, :]
+        near = np.flatnonzero((orow >= r0 - n) & (orow < r1 + n) & (ocol >= c0 - n) & (ocol < c1 + n))
+        if len(near) == 0:
+            return cost.copy()
         hh, ww = cost.shape
-        ok = (rr >= 0) & (rr < hh) & (cc >= 0) & (cc < ww)
-        np.maximum.at(cost.reshape(-1), (rr * ww + cc)[ok], np.broadcast_to(kval, rr.shape)[ok])
-        return cost
+        pad = 2 * n
+        wide = ww + 2 * pad
+        padded = np.zeros((hh + 2 * pad, wide), dtype=cost.dtype)
+        padded[pad : pad + hh, pad : pad + ww] = cost
+        centres = (orow[near] - (r0 - pad)) * wide + (ocol[near] - (c0 - pad))
+        cells = (centres[:, None] + (dr * wide + dc)[None, :]).reshape(-1)
+        # flat operands: ufunc.at takes a slow path when it has to broadcast them
+        np.maximum.at(padded.reshape(-1), cells, np.broadcast_to(kval, (len(near), len(kval))).reshape(-1))
+        return padded[pad : pad + hh, pad : pad + ww].copy()
 
     def _make_kernel(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Cell offsets (drow, dcol) and costs of one obstacle cell, inflated: the stamp for scan points."""
