@@ -157,3 +157,20 @@ def test_stamped_costs_are_each_cells_highest_kernel_value(room_costmap):
         r1, c1 = r0 + int(rng.integers(1, 40)), c0 + int(rng.integers(1, 60))
         np.testing.assert_array_equal(cm.cost_in(r0, r1, c0, c1), want[max(r0, 0):r1, max(c0, 0):c1])
         np.testing.assert_array_equal(cm.cost, want)
+
+
+def test_a_large_map_checks_obstacles_without_the_offsets_table(room_costmap, monkeypatch):
+    # maps over OFFSETS_TABLE_MAX_CELLS keep no table (it has 4 times the map's cells): same answers
+    from navworld import room_with_door
+
+    monkeypatch.setattr(Costmap, "OFFSETS_TABLE_MAX_CELLS", 0)
+    plain = Costmap(room_with_door())
+    assert plain._lethal_offsets is None and room_costmap._lethal_offsets is not None
+    rng = np.random.default_rng(9)
+    for trial in range(40):
+        points = rng.uniform((0.5, 0.5), (5.5, 3.5), size=(int(rng.integers(1, 30)), 2))
+        xs, ys = rng.uniform(0.3, 5.7, 25), rng.uniform(0.3, 3.7, 25)
+        with_table = room_costmap.with_obstacles(points, float(trial))
+        without = plain.with_obstacles(points, float(trial))
+        for x, y in zip(xs, ys):
+            assert without.any_lethal(np.array([x]), np.array([y])) == with_table.any_lethal(np.array([x]), np.array([y]))

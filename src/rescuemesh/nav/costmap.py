@@ -98,6 +98,7 @@ class Costmap:
         self._kernel_reach = n  # cells: an obstacle cell's stamp ends this far from it
         self._lethal_disc = np.zeros((2 * n + 1, 2 * n + 1), dtype=bool)  # kernel offsets that are LETHAL
         self._lethal_disc[dr[kval >= LETHAL] + n, dc[kval >= LETHAL] + n] = True
+        self._lethal_offsets = self._offsets_table()
 
     # -- geometry -------------------------------------------------------------------------------
 
@@ -163,15 +164,38 @@ class Costmap:
         except ValueError:
             return True  # a point off the grid
         if self._lethal is not None:
-            return bool(self._lethal.reshape(-1)[flat].any())
-        if self._static_lethal.reshape(-1)[flat].any():
+            return bool(np.count_nonzero(self._lethal.reshape(-1)[flat]))
+        if np.count_nonzero(self._static_lethal.reshape(-1)[flat]):
             return True
         return self._near_obstacle(rows, cols)
 
+    #: cells: the lethal-offset table (`_offsets_table`) is kept for maps up to this many cells
+    OFFSETS_TABLE_MAX_CELLS = 1_000_000
+
+    def _offsets_table(self) -> np.ndarray | None:
+        """Whether each offset (drow, dcol) between two cells of the grid is in the lethal part of
+        the kernel, at [drow + rows - 1, dcol + cols - 1]; None on maps over OFFSETS_TABLE_MAX_CELLS
+        (the table has about 4 times as many cells as the map)."""
+        h, w = self.shape
+        if h * w > self.OFFSETS_TABLE_MAX_CELLS:
+            return None
+        table = np.zeros((2 * h - 1, 2 * w - 1), dtype=bool)
+        n = self._lethal_disc.shape[0] // 2
+        nr, nc = min(n, h - 1), min(n, w - 1)  # offsets beyond the grid's size never occur
+        table[h - 1 - nr : h + nr, w - 1 - nc : w + nc] = self._lethal_disc[n - nr : n + nr + 1, n - nc : n + nc + 1]
+        return table
+
     def _near_obstacle(self, rows: np.ndarray, cols: np.ndarray) -> bool:
-        """Whether any cell (rows[i], cols[i]) lies in the lethal part of an obstacle cell's kernel:
-        the same answer as the stamped array, without stamping the whole map."""
+        """Whether any cell (rows[i], cols[i]) (on the grid) lies in the lethal part of an obstacle
+        cell's kernel: the same answer as the stamped array, without stamping the whole map."""
         orow, ocol = self._obstacle_rc
+        table = self._lethal_offsets
+        if table is not None:  # one lookup per (cell, obstacle cell) pair, both on the grid
+            h, w = self.shape
+            wide = 2 * w - 1  # the table's row length: flat index (r - orow + h - 1) * wide + (c - ocol + w - 1)
+            centre = (h - 1) * wide + (w - 1)
+            at = (rows * wide + cols)[:, None] - (orow * wide + ocol - centre)[None, :]
+            return bool(np.count_nonzero(table.reshape(-1)[at]))
         dr = rows[:, None] - orow[None, :]
         dc = cols[:, None] - ocol[None, :]
         n = self._lethal_disc.shape[0] // 2
