@@ -1,6 +1,7 @@
 """Radio channel models: the physics of one frame from one place to another (simulation only).
 
-Owns: ChannelModel and its registry, DiscChannel ("disc") and BleChannel ("ble", the default).
+Owns: ChannelModel and its registry, DiscChannel ("disc") and BleChannel ("ble", the default),
+UniformStream (a Generator's uniforms a block at a time, for the per-frame draws).
 Must not know: frame contents, queues, collisions, endpoints, robots (transport/'s medium does).
 """
 
@@ -16,6 +17,7 @@ from rescuemesh.radio.channel import (
     register_channel,
 )
 from rescuemesh.radio.ble import BleChannel, BleParams, LinkBudget  # noqa: E402  (registers "ble")
+from rescuemesh.radio.streams import UniformStream
 
 __all__ = [
     "CHANNELS",
@@ -27,6 +29,7 @@ __all__ = [
     "LinkBudget",
     "LossCause",
     "Reception",
+    "UniformStream",
     "ble_adv_airtime_s",
     "make_channel",
     "register_channel",

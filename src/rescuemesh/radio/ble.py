@@ -20,7 +20,8 @@ cannot be disturbed by the frame either).
 Positions are quantised to the centre of the grid cell holding them (no grid: a 5 cm lattice)
 before anything is computed, so the mean power of a pair of cells is computed once and cached
 (LRU), and it is symmetric: P_mean(a, b) == P_mean(b, a). `reception` then costs one cache look-up,
-one `rng.random(3)` and a few `math` calls. `delivery_probability` reads a table of the expected
+three uniforms (`rng.random(3)`, or the next three of a UniformStream: the same numbers) and a few
+`math` calls. `delivery_probability` reads a table of the expected
 delivery against the margin over sensitivity, built once per frame size by averaging 1 - PER over
 the exact fading distribution.
 """
@@ -39,6 +40,7 @@ from rescuemesh.radio.channel import ChannelModel, LossCause, Point, Reception, 
 from rescuemesh.radio.fading import gain_db_distribution, rician_gain_from_uniforms
 from rescuemesh.radio.per import crc_covered_bits, packet_error_rate, packet_error_rate_scalar
 from rescuemesh.radio.shadowing import ShadowField
+from rescuemesh.radio.streams import UniformStream, uniforms
 from rescuemesh.radio.walls import count_walls, count_walls_many
 
 #: Position quantum in m when the channel has no map grid.
@@ -262,14 +264,15 @@ class BleChannel(ChannelModel):
     def audible(self, tx_xy: Point, rx_xy: Point) -> bool:
         return self.mean_rx_power_dbm(tx_xy, rx_xy) >= self._floor
 
-    def reception(self, tx_xy: Point, rx_xy: Point, frame_bytes: int, rng: np.random.Generator) -> Reception:
+    def reception(self, tx_xy: Point, rx_xy: Point, frame_bytes: int,
+                  rng: np.random.Generator | UniformStream) -> Reception:
         mean = self.mean_rx_power_dbm(tx_xy, rx_xy)
         if mean < self._floor:
             return Reception(False, mean, LossCause.OUT_OF_RANGE)
         bits = self._bits.get(frame_bytes)
         if bits is None:
             bits = self._bits[frame_bytes] = crc_covered_bits(frame_bytes)
-        u_radius, u_angle, u_error = rng.random(3).tolist()
+        u_radius, u_angle, u_error = uniforms(rng, 3)
         gain = rician_gain_from_uniforms(u_radius, u_angle, self._k)
         if gain <= 0.0:
             return Reception(False, -math.inf, LossCause.BIT_ERRORS)

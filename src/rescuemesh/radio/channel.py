@@ -9,7 +9,8 @@ How the medium uses a model, per frame sent at `tx_xy`:
   1. `airtime_s(frame_bytes)`: how long the frame occupies the air (for scheduling, collisions).
   2. for every other radio at `rx_xy`: skip it unless `audible(tx_xy, rx_xy)` (such a radio can
      neither receive nor be disturbed by this frame); else `reception(..., rng)` decides this
-     frame's fate with the pair's own random stream. The medium may then still lose a delivered
+     frame's fate with the pair's own random stream (a numpy Generator, or the medium's
+     UniformStream over one: models draw through radio.streams.uniforms, the same numbers). The medium may then still lose a delivered
      frame to a collision, the extra loss, a radio that is off or busy sending, using the last
      four LossCause values.
 Positions are (x, y) in m in the map frame. Models are deterministic given their seed except for
@@ -27,6 +28,7 @@ from typing import Any, ClassVar, NamedTuple
 import numpy as np
 
 from rescuemesh.maps.grid import OccupancyGrid
+from rescuemesh.radio.streams import UniformStream
 
 #: Nominal Bluetooth range in m (the paper's Table II).
 BLUETOOTH_NOMINAL_RANGE_M = 10.0
@@ -97,8 +99,10 @@ class ChannelModel(abc.ABC):
         """Deterministic received power in dBm: path loss, walls, shadowing; no fast fading."""
 
     @abc.abstractmethod
-    def reception(self, tx_xy: Point, rx_xy: Point, frame_bytes: int, rng: np.random.Generator) -> Reception:
-        """Draw the fate of one frame at one receiver (fast: runs per frame per receiver). Must give
+    def reception(self, tx_xy: Point, rx_xy: Point, frame_bytes: int,
+                  rng: np.random.Generator | UniformStream) -> Reception:
+        """Draw the fate of one frame at one receiver (fast: runs per frame per receiver); `rng` is a
+        numpy Generator or a UniformStream (draw with radio.streams.uniforms). Must give
         cause OUT_OF_RANGE exactly when `audible` is False, and then draw nothing from `rng`: the
         medium asks this alone and treats such a receiver as out of earshot."""
 
@@ -162,7 +166,8 @@ class DiscChannel(ChannelModel):
     def mean_rx_power_dbm(self, tx_xy: Point, rx_xy: Point) -> float:
         return 0.0 if self.audible(tx_xy, rx_xy) else -math.inf
 
-    def reception(self, tx_xy: Point, rx_xy: Point, frame_bytes: int, rng: np.random.Generator) -> Reception:
+    def reception(self, tx_xy: Point, rx_xy: Point, frame_bytes: int,
+                  rng: np.random.Generator | UniformStream) -> Reception:
         if self.audible(tx_xy, rx_xy):
             return _DISC_DELIVERED
         return _DISC_OUT_OF_RANGE

@@ -38,7 +38,8 @@ metadata the mesh layer attaches to each Transmission, never the bytes), robots,
 #
 # Randomness: advDelay and relay delays come from a stream per radio; fading and PER draws from a
 # stream per ordered pair (sender, receiver), and the extra --loss from another: adding a robot
-# that no one hears changes nothing for the others. Same seed, same run.
+# that no one hears changes nothing for the others. Same seed, same run. Every stream is a
+# UniformStream (radio/streams.py): the generator's numbers in its order, drawn 128 at a time.
 
 from __future__ import annotations
 
@@ -53,7 +54,7 @@ from typing import Protocol
 import numpy as np
 
 from rescuemesh.protocol import BROADCAST
-from rescuemesh.radio import ChannelModel, LossCause
+from rescuemesh.radio import ChannelModel, LossCause, UniformStream
 from rescuemesh.radio.channel import ADV_CHANNELS
 
 #: At most this many events in one pump: a runaway guard.
@@ -174,7 +175,7 @@ class _Radio:
     address: int
     stack: NetworkStack
     position: Callable[[], tuple[float, float]]
-    rng: np.random.Generator
+    rng: UniformStream
     enabled: bool = True
     queue: deque = field(default_factory=deque)
     tx_scheduled: bool = False
@@ -220,7 +221,7 @@ class SimMedium:
         self._heap: list = []
         self._order = itertools.count()
         self._timer_at: dict[int, float] = {}
-        self._pair_rngs: dict[tuple[int, int, int], np.random.Generator] = {}
+        self._pair_rngs: dict[tuple[int, int, int], UniformStream] = {}
         self._bursts: list[_Burst] = []  # frames on the air or not yet arrived, in start order
         self._now = 0.0
         #: Radio positions read once per pump or flush (the world does not move inside one): a team
@@ -295,10 +296,10 @@ class SimMedium:
             xy = self._xy[radio.address] = radio.position()
         return xy
 
-    def _stream(self, *key: int) -> np.random.Generator:
-        return np.random.default_rng(np.random.SeedSequence(self._seed, spawn_key=key))
+    def _stream(self, *key: int) -> UniformStream:
+        return UniformStream(np.random.default_rng(np.random.SeedSequence(self._seed, spawn_key=key)))
 
-    def _pair_rng(self, purpose: int, sender: int, receiver: int) -> np.random.Generator:
+    def _pair_rng(self, purpose: int, sender: int, receiver: int) -> UniformStream:
         key = (purpose, sender, receiver)
         rng = self._pair_rngs.get(key)
         if rng is None:
