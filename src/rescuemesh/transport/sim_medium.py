@@ -177,6 +177,9 @@ class _Radio:
     position: Callable[[], tuple[float, float]]
     rng: UniformStream
     enabled: bool = True
+    #: This radio's streams as a sender, by receiver address: fading and PER, and the extra loss.
+    fading: dict = field(default_factory=dict)
+    extra: dict = field(default_factory=dict)
     queue: deque = field(default_factory=deque)
     tx_scheduled: bool = False
     next_allowed_s: float = float("-inf")
@@ -221,7 +224,6 @@ class SimMedium:
         self._heap: list = []
         self._order = itertools.count()
         self._timer_at: dict[int, float] = {}
-        self._pair_rngs: dict[tuple[int, int, int], UniformStream] = {}
         self._bursts: list[_Burst] = []  # frames on the air or not yet arrived, in start order
         self._now = 0.0
         #: Radio positions read once per pump or flush (the world does not move inside one): a team
@@ -299,12 +301,13 @@ class SimMedium:
     def _stream(self, *key: int) -> UniformStream:
         return UniformStream(np.random.default_rng(np.random.SeedSequence(self._seed, spawn_key=key)))
 
-    def _pair_rng(self, purpose: int, sender: int, receiver: int) -> UniformStream:
-        key = (purpose, sender, receiver)
-        rng = self._pair_rngs.get(key)
-        if rng is None:
-            rng = self._pair_rngs[key] = self._stream(*key)
-        return rng
+    def _pair_stream(self, streams: dict, purpose: int, sender: int, receiver: int) -> UniformStream:
+        """The stream (purpose, sender, receiver), made the first time it is needed, from `streams`:
+        the sender's dict of that purpose by receiver."""
+        stream = streams.get(receiver)
+        if stream is None:
+            stream = streams[receiver] = self._stream(purpose, sender, receiver)
+        return stream
 
     def _push(self, at: float, kind: _Event, payload) -> None:
         heapq.heappush(self._heap, (at, kind, next(self._order), payload))
@@ -368,22 +371,31 @@ class SimMedium:
         burst = _Burst(transmission, radio, start, end, record)
         sender_xy = self._position(radio)
         dst = transmission.dst
+        # the loop runs once per frame per other radio: what it needs, read once
+        reception, xy, fading = self.channel.reception, self._xy, radio.fading
+        slot, receivers, verdicts, lost = burst.slot, burst.receivers, burst.verdicts, burst.lost
         for receiver in self._radios.values():
             if receiver is radio:
                 continue
+            address = receiver.address
             verdict = None
             if receiver.enabled:  # OUT_OF_RANGE exactly when not audible, nothing drawn (ChannelModel)
-                verdict = self.channel.reception(sender_xy, self._position(receiver), size,
-                                                 self._pair_rng(2, radio.address, receiver.address))
+                rx_xy = xy.get(address)  # self._position(receiver), inlined
+                if rx_xy is None:
+                    rx_xy = xy[address] = receiver.position()
+                stream = fading.get(address)
+                if stream is None:
+                    stream = self._pair_stream(fading, 2, radio.address, address)
+                verdict = reception(sender_xy, rx_xy, size, stream)
             if verdict is None or verdict.cause is LossCause.OUT_OF_RANGE:
-                if dst == BROADCAST or dst == receiver.address:  # only intended ones count
+                if dst == BROADCAST or dst == address:  # only intended ones count
                     cause = LossCause.RADIO_OFF if not receiver.enabled else LossCause.OUT_OF_RANGE
                     self._count_reception(transmission, receiver, cause)
                 continue
-            burst.slot[receiver.address] = len(burst.receivers)
-            burst.receivers.append(receiver)
-            burst.verdicts.append(verdict)
-            burst.lost.append(LossCause.HALF_DUPLEX if receiver.on_air_until > start else None)
+            slot[address] = len(receivers)
+            receivers.append(receiver)
+            verdicts.append(verdict)
+            lost.append(LossCause.HALF_DUPLEX if receiver.on_air_until > start else None)
         if burst.receivers:
             for other in on_air:
                 self._collide(burst, other)
@@ -413,16 +425,15 @@ class SimMedium:
     def _arrive(self, burst: _Burst, at: float) -> None:
         transmission, sender, record = burst.transmission, burst.sender, burst.record
         data = transmission.data
-        timing = self.timing
-        for k, receiver in enumerate(burst.receivers):
-            lost = burst.lost[k]
-            verdict = burst.verdicts[k]
+        relay_delay_max_s, extra_loss, observe = self.timing.relay_delay_max_s, self.extra_loss, self.observe
+        for receiver, lost, verdict in zip(burst.receivers, burst.lost, burst.verdicts):
             if lost is None and not receiver.enabled:
                 lost = LossCause.RADIO_OFF
             if lost is None and not verdict.delivered:
                 lost = verdict.cause or LossCause.BIT_ERRORS
-            if lost is None and self.extra_loss > 0.0:
-                if self._pair_rng(3, sender.address, receiver.address).random() < self.extra_loss:
+            if lost is None and extra_loss > 0.0:
+                stream = self._pair_stream(sender.extra, 3, sender.address, receiver.address)
+                if stream.random() < extra_loss:
                     lost = LossCause.EXTRA_LOSS
             self._count_reception(transmission, receiver, lost)
             if record is not None:
@@ -434,13 +445,13 @@ class SimMedium:
                         record.dst_heard = True
             if lost is not None:
                 continue
-            relay_delay = receiver.rng.random() * timing.relay_delay_max_s if timing.relay_delay_max_s else 0.0
-            if self.observe is None:
+            relay_delay = receiver.rng.random() * relay_delay_max_s if relay_delay_max_s else 0.0
+            if observe is None:
                 if receiver.stack.receive(data, at, rssi_dbm=verdict.rssi_dbm, relay_delay_s=relay_delay) is False:
                     continue  # dropped: nothing new to send, no earlier timer
             else:
-                self.observe(sender.address, receiver.address, data, at,
-                             _delivery(receiver.stack, data, at, verdict.rssi_dbm, relay_delay))
+                observe(sender.address, receiver.address, data, at,
+                        _delivery(receiver.stack, data, at, verdict.rssi_dbm, relay_delay))
             self._collect(receiver, at)
 
     def _count_transmission(self, transmission, size: int, airtime_s: float) -> None:
