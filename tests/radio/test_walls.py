@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rescuemesh.maps import OccupancyGrid, load_map, office_map_path
-from rescuemesh.radio.walls import count_walls, count_walls_many
+from rescuemesh.radio.walls import count_walls, count_walls_cells, count_walls_many
 
 
 @pytest.fixture(scope="module")
@@ -79,3 +79,19 @@ def test_office_walls():
     office = load_map(office_map_path()).grid
     assert count_walls(office, (5.0, 8.0), (15.0, 8.0)) == 2  # hall east wall, wall at x 13.6
     assert count_walls(office, (3.0, 4.6), (15.0, 4.6)) == 0  # through the passage and the doorway
+
+
+def test_cell_count_equals_the_count_between_the_cell_centres():
+    """BleChannel counts walls from its cells: the same as count_walls between their centres,
+    on and off the grid (the office's grid; cells are (row, col))."""
+    office = load_map(office_map_path()).grid
+    q, ox, oy = float(office.resolution), float(office.origin_x), float(office.origin_y)
+    n_rows, n_cols = office.occupied.shape
+    rng = np.random.default_rng(11)
+    cells = rng.integers((-5, -5, -5, -5), (n_rows + 5, n_cols + 5, n_rows + 5, n_cols + 5), size=(400, 4))
+    counts = []
+    for r0, c0, r1, c1 in cells.tolist():
+        centre = lambda r, c: (ox + (c + 0.5) * q, oy + (r + 0.5) * q)  # noqa: E731 (as BleChannel._centre)
+        counts.append(count_walls_cells(office, r0, c0, r1, c1))
+        assert counts[-1] == count_walls(office, centre(r0, c0), centre(r1, c1))
+    assert max(counts) >= 3 and min(counts) == 0

@@ -41,7 +41,7 @@ from rescuemesh.radio.fading import gain_db_distribution, rician_gain_from_unifo
 from rescuemesh.radio.per import crc_covered_bits, packet_error_rate, packet_error_rate_scalar
 from rescuemesh.radio.shadowing import ShadowField
 from rescuemesh.radio.streams import UniformStream, uniforms
-from rescuemesh.radio.walls import count_walls, count_walls_many
+from rescuemesh.radio.walls import count_walls_cells, count_walls_many
 
 #: Position quantum in m when the channel has no map grid.
 DEFAULT_QUANTUM_M = 0.05
@@ -200,23 +200,32 @@ class BleChannel(ChannelModel):
         return self._budget_cells(*a, *b)
 
     def _budget_cells(self, ai: int, aj: int, bi: int, bj: int) -> LinkBudget:
-        """The link budget between the centres of cells (ai, aj) <= (bi, bj), with the shadow field
-        read from a per-cell cache: a team's cells recur far more often than their pairs, which
-        change whenever either robot moves 5 cm."""
+        """The link budget between the centres of cells (ai, aj) <= (bi, bj)."""
+        d, path_loss, walls, shadow, power = self._budget_terms(ai, aj, bi, bj)
+        p = self.params
+        return LinkBudget(d, path_loss, walls, walls * p.wall_loss_db, shadow, power, power - self._sens)
+
+    def _budget_terms(self, ai: int, aj: int, bi: int, bj: int) -> tuple[float, float, int, float, float]:
+        """(distance, path loss, walls, shadow, mean power) between the centres of cells (ai, aj) <=
+        (bi, bj), with the shadow field read from a per-cell cache: a team's cells recur far more
+        often than their pairs, which change whenever either robot moves 5 cm (a convoy of 30 meets
+        some 360,000 new pairs: a tuple, not a frozen LinkBudget, for the cache's misses)."""
         pa, pb = self._centre(ai, aj), self._centre(bi, bj)
         p = self.params
         d = math.hypot(pb[0] - pa[0], pb[1] - pa[1])
         path_loss = p.reference_loss_db + 10.0 * p.path_loss_exponent * math.log10(max(d, p.min_distance_m))
-        walls = count_walls(self.grid, pa, pb) if self.grid is not None else 0
+        # count_walls(grid, pa, pb) from the cells themselves: a centre lies half a cell from any
+        # edge, so mapping it back to a cell (as count_walls does, rows first) gives (aj, ai) again
+        walls = count_walls_cells(self.grid, aj, ai, bj, bi) if self.grid is not None else 0
         # ShadowField.link_db(pa, pb), from the cached unit values
         shadow = self.shadow.sigma_db * (self._unit_at(ai, aj, pa) + self._unit_at(bi, bj, pb)) / _SQRT2 \
             if self.shadow.sigma_db != 0.0 else 0.0
         power = p.tx_power_dbm + p.tx_antenna_gain_dbi + p.rx_antenna_gain_dbi - path_loss \
             - walls * p.wall_loss_db - shadow
-        return LinkBudget(d, path_loss, walls, walls * p.wall_loss_db, shadow, power, power - self._sens)
+        return d, path_loss, walls, shadow, power
 
     def _compute_mean_power_cells(self, ai: int, aj: int, bi: int, bj: int) -> float:
-        return self._budget_cells(ai, aj, bi, bj).mean_rx_power_dbm
+        return self._budget_terms(ai, aj, bi, bj)[4]
 
     def _unit_at(self, i: int, j: int, centre: Point) -> float:
         """The shadow field F at the centre of cell (i, j), cached (bounded like the pair cache)."""

@@ -1,6 +1,6 @@
 """How many walls a straight radio path crosses, counted on the map's occupancy grid.
 
-Owns: the wall count of a segment (one, and one transmitter to many receivers). Must not know:
+Owns: the wall count of a segment (one, between two cells, and one transmitter to many receivers). Must not know:
 what a wall costs in dB, radios, the medium.
 
 The path is the straight line between the cells holding its two ends, rasterised with Bresenham's
@@ -64,6 +64,12 @@ def count_walls(grid: OccupancyGrid, a: tuple[float, float], b: tuple[float, flo
     """Walls crossed on the straight path from `a` to `b` (points in m, frame map)."""
     r0, c0 = _cell(grid, float(a[0]), float(a[1]))
     r1, c1 = _cell(grid, float(b[0]), float(b[1]))
+    return _walls_on_line(_padded(grid), r0, c0, r1, c1)
+
+
+def count_walls_cells(grid: OccupancyGrid, r0: int, c0: int, r1: int, c1: int) -> int:
+    """Walls crossed on the path from cell (row r0, col c0) to cell (r1, c1): count_walls between
+    the two cells' centres, without mapping the points back to cells."""
     return _walls_on_line(_padded(grid), r0, c0, r1, c1)
 
 
