@@ -426,6 +426,7 @@ class SimMedium:
         transmission, sender, record = burst.transmission, burst.sender, burst.record
         data = transmission.data
         relay_delay_max_s, extra_loss, observe = self.timing.relay_delay_max_s, self.extra_loss, self.observe
+        stats, dst = self.stats, transmission.dst
         for receiver, lost, verdict in zip(burst.receivers, burst.lost, burst.verdicts):
             if lost is None and not receiver.enabled:
                 lost = LossCause.RADIO_OFF
@@ -435,7 +436,14 @@ class SimMedium:
                 stream = self._pair_stream(sender.extra, 3, sender.address, receiver.address)
                 if stream.random() < extra_loss:
                     lost = LossCause.EXTRA_LOSS
-            self._count_reception(transmission, receiver, lost)
+            if lost is None:  # self._count_reception(transmission, receiver, None), inlined
+                stats.receptions_delivered += 1
+                if dst == BROADCAST:
+                    stats.broadcast_delivered += 1
+                elif dst == receiver.address:
+                    stats.unicast_delivered += 1
+            else:
+                self._count_reception(transmission, receiver, lost)
             if record is not None:
                 if lost is LossCause.COLLISION:
                     record.collided = True
