@@ -118,11 +118,10 @@ class Costmap:
     def cells_of(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(rows, cols, inside) int arrays for an (N, 2) array of map points in m."""
         xy = np.asarray(xy, dtype=float).reshape(-1, 2)
-        rows = np.floor((xy[:, 1] - self.grid.origin_y) / self.resolution).astype(np.int64)
-        cols = np.floor((xy[:, 0] - self.grid.origin_x) / self.resolution).astype(np.int64)
-        h, w = self.shape
-        inside = (rows.view(np.uint64) < h) & (cols.view(np.uint64) < w)  # a negative index is huge unsigned
-        return rows, cols, inside
+        # x and y in one array: few numpy calls, each costs more than the work on a scan's points
+        cr = np.floor((xy - self._origin_xy) / self.resolution).astype(np.int64)
+        ok = cr.view(np.uint64) < self._size_wh  # (col, row) on the grid; a negative index is huge unsigned
+        return cr[:, 1], cr[:, 0], ok[:, 0] & ok[:, 1]
 
     # -- queries --------------------------------------------------------------------------------
 
@@ -237,13 +236,11 @@ class Costmap:
         out.obstacle_stamp = now
         # this runs for every scan, mostly on points of static walls: the cheap tests first, the
         # clear radius on the rest; the points kept are followed by index (cheaper than masks on
-        # the (N, 2) array). Few numpy calls: each costs about a microsecond, more than the work
-        # on a scan's 600 points. The cells are `cells_of`'s, x and y computed in one array.
-        h, w = self.shape
-        cr = np.floor((pts - self._origin_xy) / self.resolution).astype(np.int64)
-        ok = cr.view(np.uint64) < self._size_wh  # (col, row) on the grid; a negative index is huge unsigned
-        kept = np.flatnonzero(ok[:, 0] & ok[:, 1])
-        flat = (cr[:, 1] * w + cr[:, 0])[kept]
+        # the (N, 2) array), flat indices computed before the cut
+        w = self.shape[1]
+        rows, cols, inside = self.cells_of(pts)
+        kept = np.flatnonzero(inside)
+        flat = (rows * w + cols)[kept]
         stampable = self._stampable[flat]
         kept, flat = kept[stampable], flat[stampable]
         if clear_center is not None and clear_radius > 0.0 and len(flat):

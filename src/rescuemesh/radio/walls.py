@@ -62,9 +62,7 @@ def _cell(grid: OccupancyGrid, x: float, y: float) -> tuple[int, int]:
 
 def count_walls(grid: OccupancyGrid, a: tuple[float, float], b: tuple[float, float]) -> int:
     """Walls crossed on the straight path from `a` to `b` (points in m, frame map)."""
-    r0, c0 = _cell(grid, float(a[0]), float(a[1]))
-    r1, c1 = _cell(grid, float(b[0]), float(b[1]))
-    return _walls_on_line(_padded(grid), r0, c0, r1, c1)
+    return count_walls_cells(grid, *_cell(grid, float(a[0]), float(a[1])), *_cell(grid, float(b[0]), float(b[1])))
 
 
 def count_walls_cells(grid: OccupancyGrid, r0: int, c0: int, r1: int, c1: int) -> int:

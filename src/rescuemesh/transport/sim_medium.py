@@ -372,7 +372,7 @@ class SimMedium:
         sender_xy = self._position(radio)
         dst = transmission.dst
         # the loop runs once per frame per other radio: what it needs, read once
-        reception, xy, fading = self.channel.reception, self._xy, radio.fading
+        reception, fading = self.channel.reception, radio.fading
         slot, receivers, verdicts, lost = burst.slot, burst.receivers, burst.verdicts, burst.lost
         for receiver in self._radios.values():
             if receiver is radio:
@@ -380,13 +380,8 @@ class SimMedium:
             address = receiver.address
             verdict = None
             if receiver.enabled:  # OUT_OF_RANGE exactly when not audible, nothing drawn (ChannelModel)
-                rx_xy = xy.get(address)  # self._position(receiver), inlined
-                if rx_xy is None:
-                    rx_xy = xy[address] = receiver.position()
-                stream = fading.get(address)
-                if stream is None:
-                    stream = self._pair_stream(fading, 2, radio.address, address)
-                verdict = reception(sender_xy, rx_xy, size, stream)
+                verdict = reception(sender_xy, self._position(receiver), size,
+                                    self._pair_stream(fading, 2, radio.address, address))
             if verdict is None or verdict.cause is LossCause.OUT_OF_RANGE:
                 if dst == BROADCAST or dst == address:  # only intended ones count
                     cause = LossCause.RADIO_OFF if not receiver.enabled else LossCause.OUT_OF_RANGE
@@ -426,7 +421,6 @@ class SimMedium:
         transmission, sender, record = burst.transmission, burst.sender, burst.record
         data = transmission.data
         relay_delay_max_s, extra_loss, observe = self.timing.relay_delay_max_s, self.extra_loss, self.observe
-        stats, dst = self.stats, transmission.dst
         for receiver, lost, verdict in zip(burst.receivers, burst.lost, burst.verdicts):
             if lost is None and not receiver.enabled:
                 lost = LossCause.RADIO_OFF
@@ -436,14 +430,7 @@ class SimMedium:
                 stream = self._pair_stream(sender.extra, 3, sender.address, receiver.address)
                 if stream.random() < extra_loss:
                     lost = LossCause.EXTRA_LOSS
-            if lost is None:  # self._count_reception(transmission, receiver, None), inlined
-                stats.receptions_delivered += 1
-                if dst == BROADCAST:
-                    stats.broadcast_delivered += 1
-                elif dst == receiver.address:
-                    stats.unicast_delivered += 1
-            else:
-                self._count_reception(transmission, receiver, lost)
+            self._count_reception(transmission, receiver, lost)
             if record is not None:
                 if lost is LossCause.COLLISION:
                     record.collided = True
