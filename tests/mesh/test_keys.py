@@ -3,12 +3,18 @@
 
 from __future__ import annotations
 
+import hashlib
+import hmac
 import os
+import re
 import stat
+from pathlib import Path
 
 import pytest
 
 from rescuemesh.mesh.keys import (
+    FRAME_KEY_INFO,
+    FRAME_KEY_SALT,
     KeyFileError,
     derive_frame_key,
     hkdf_sha256,
@@ -17,31 +23,45 @@ from rescuemesh.mesh.keys import (
     write_team_key,
 )
 
-# RFC 5869, Appendix A, test cases 1-3 (SHA-256): IKM, salt, info, L, OKM.
-RFC5869 = [
-    pytest.param(
-        "0b" * 22, "000102030405060708090a0b0c", "f0f1f2f3f4f5f6f7f8f9", 42,
-        "3cb25f25faacd57a90434f64d0362f2a2d2d0a90cf1a5a4c5db02d56ecc4c5bf34007208d5b887185865",
-        id="case-1",
-    ),
-    pytest.param(
-        bytes(range(0x00, 0x50)).hex(), bytes(range(0x60, 0xB0)).hex(), bytes(range(0xB0, 0x100)).hex(), 82,
-        "b11e398dc80327a1c8e7f78c596a49344f012eda2d4efad8a050cc4c19afa97c"
-        "59045a99cac7827271cb41c65e590e09da3275600c2f09b8367793a9aca3db71"
-        "cc30c58179ec3e87c14c01d5c1f3434f1d87",
-        id="case-2",
-    ),
-    pytest.param(
-        "0b" * 22, "", "", 42,
-        "8da4e775a563c18f715f802a063c5a31b8a11f5c5ee1879ec3454e5f3c738d2d9d201395faa4b61a96c8",
-        id="case-3-empty-salt-and-info",
-    ),
-]
+DOCS = Path(__file__).resolve().parents[2] / "docs" / "protocol.md"
 
 
-@pytest.mark.parametrize("ikm, salt, info, length, okm", RFC5869)
-def test_hkdf_sha256_matches_rfc5869(ikm, salt, info, length, okm):
-    assert hkdf_sha256(bytes.fromhex(ikm), bytes.fromhex(salt), bytes.fromhex(info), length).hex() == okm
+def _doc_blocks(kind: str) -> list[dict[str, str]]:
+    """The `name: value` blocks of docs/protocol.md section 12 that have a `kind` line."""
+    text = DOCS.read_text(encoding="utf-8")
+    blocks = re.findall(r"```text\n(.*?)```", text[text.index("## 12. Authenticated frames"):], flags=re.DOTALL)
+    fields = [dict(line.split(":", 1) for line in block.strip().splitlines()) for block in blocks]
+    return [{k.strip(): v.strip() for k, v in f.items()} for f in fields if kind in {k.strip() for k in f}]
+
+
+def _bytes(value: str) -> bytes:
+    return b"" if value == "(empty)" else bytes.fromhex(value)
+
+
+RFC5869 = [pytest.param(case, id=case["hkdf case"]) for case in _doc_blocks("hkdf case")]
+
+
+def test_docs_reproduce_rfc5869_cases_1_to_3():
+    assert [case.values[0]["hkdf case"] for case in RFC5869] == ["RFC 5869 A.1", "RFC 5869 A.2", "RFC 5869 A.3"]
+
+
+@pytest.mark.parametrize("case", RFC5869)
+def test_hkdf_sha256_matches_rfc5869(case):
+    """RFC 5869, Appendix A, test cases 1-3 (SHA-256), as docs/protocol.md section 12 reproduces them:
+    the PRK is HMAC-SHA256(salt, IKM), an empty salt being 32 zero bytes; the OKM is what
+    hkdf_sha256 gives."""
+    ikm, salt, info = _bytes(case["ikm"]), _bytes(case["salt"]), _bytes(case["info"])
+    assert hmac.new(salt or bytes(32), ikm, hashlib.sha256).hexdigest() == case["prk"]
+    assert hkdf_sha256(ikm, salt, info, int(case["length"])).hex() == case["okm"]
+
+
+def test_frame_key_salt_and_info_are_the_documented_ascii_bytes():
+    [use] = _doc_blocks("hkdf use")
+    assert use["hkdf use"] == "frame key" and int(use["length"]) == 16
+    assert _bytes(use["salt"]) == FRAME_KEY_SALT == "rescuemesh v1".encode("ascii")
+    assert _bytes(use["info"]) == FRAME_KEY_INFO == "frame encryption".encode("ascii")
+    team_key = bytes(range(16))
+    assert derive_frame_key(team_key) == hkdf_sha256(team_key, _bytes(use["salt"]), _bytes(use["info"]), 16)
 
 
 def test_frame_key_is_derived_not_the_team_key():

@@ -158,6 +158,40 @@ def test_docs_worked_examples():
     assert {(6, False), (1, False), (32, False), (34, False), (36, True)} <= types
 
 
+def _doc_error_rows() -> list[tuple[bytes, str, int, str]]:
+    text = DOCS.read_text(encoding="utf-8")
+    table = text[text.index("### Errors, worked"):]
+    rows = re.findall(r"^\| `([0-9A-F ]+)` \| `(seal|open)`, epoch (\d+) \| `(\w+)` \|", table, flags=re.MULTILINE)
+    return [(bytes.fromhex(data), call, int(epoch), error) for data, call, epoch, error in rows]
+
+
+ERRORS = {"ValueError": ValueError, "AuthenticationError": AuthenticationError, "MicMismatch": MicMismatch}
+
+
+def test_docs_error_table():
+    """docs/protocol.md section 12, "Errors, worked": every row raises exactly the class it names."""
+    rows = _doc_error_rows()
+    assert len(rows) >= 7
+    for data, call, epoch, error in rows:
+        with pytest.raises(ERRORS[error]) as caught:
+            getattr(SEALER, call)(data, epoch)
+        assert type(caught.value) is ERRORS[error], (data.hex(" "), call, epoch)
+
+
+@pytest.mark.parametrize("length", [10, 12, 16, 18, 20])
+def test_a_heartbeat_is_sealed_and_opened_at_17_bytes_only(length):
+    # this used to seal and open a type-34 frame of any length 10..20 (then dropped as malformed)
+    crc_frame = with_crc(heartbeat(7)[:6] + bytes(length - 10))
+    with pytest.raises(ValueError):
+        SEALER.seal(crc_frame, 7)
+    body = bytes((crc_frame[0] | AUTH_BIT,)) + crc_frame[1:-4]
+    nonce = body[:6] + bytes(3) + (7).to_bytes(4, "big")
+    sealed = body + AESCCM(KEY, tag_length=4).encrypt(nonce, b"", body)  # the MIC a team member would make
+    with pytest.raises(AuthenticationError) as caught:
+        SEALER.open(sealed, 7)
+    assert type(caught.value) is AuthenticationError  # rejected before the MIC check
+
+
 def test_docs_examples_stay_out_of_the_crc_frame_check():
     """tests/protocol/test_codec.py decodes every bare hex line of docs/protocol.md as a CRC frame;
     section 12's lines carry a prefix, so none of them is picked up (a sealed frame would fail)."""

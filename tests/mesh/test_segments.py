@@ -3,13 +3,17 @@
 from __future__ import annotations
 
 import re
+import zlib
 from pathlib import Path
 
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from rescuemesh.mesh import segments as segments_module
+from rescuemesh.mesh.events import FrameDelivered
 from rescuemesh.mesh.frames import read_on_air
+from rescuemesh.mesh.node import MeshNode
 from rescuemesh.mesh.segments import (
     MAX_SEGMENTS,
     Segment,
@@ -23,7 +27,7 @@ from rescuemesh.mesh.segments import (
 from rescuemesh.protocol import MalformedPayload, decode_frame
 
 from .chain import frame as raw_frame
-from .frames import data
+from .frames import data, stop
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "mesh.md"
 
@@ -150,3 +154,51 @@ def test_split_and_rebuild_round_trip(payload, ttl, attempt, round_):
     assert all(14 <= len(s) <= 29 for s in segs)
     body = b"".join(parse_segment(s).data for s in segs)
     assert rebuild_frame(segs[-1], body, 7, ttl) == frame
+
+
+# --- docs/mesh.md section 6: the rules issue 23 settled ---------------------------------------------
+
+
+def _section_6() -> str:
+    text = DOC.read_text(encoding="utf-8")
+    return " ".join(text[text.index("## 6. Segment frames"):text.index("## 7. ")].split())
+
+
+class _RecordingZlib:
+    """Stands in for zlib inside segments.py: records each header rebuild_frame tries."""
+
+    def __init__(self) -> None:
+        self.tried: list[tuple[int, int]] = []
+
+    def crc32(self, data: bytes, value: int = 0) -> int:
+        if len(data) == 6 and value == 0:  # a candidate header: (TTL, attempt)
+            self.tried.append((data[0] & 0x0F, data[1] >> 6))
+        return zlib.crc32(data, value)
+
+
+@pytest.mark.parametrize("g, m", [(7, 5), (3, 5), (7, 7), (15, 15), (0, 0), (9, 2)])
+def test_rebuild_tries_the_candidates_in_the_documented_order(monkeypatch, g, m):
+    rule = ("The candidates, in this order, are: TTL g if m ≤ g ≤ 15; then TTL m, m + 1, .. 15, "
+            "skipping g; and for each TTL, attempt 0, 1, 2, 3.")
+    assert rule in _section_6()
+    ttls = ([g] if m <= g <= 15 else []) + [t for t in range(m, 16) if t != g]
+    documented = [(ttl, attempt) for ttl in ttls for attempt in range(4)]
+    frame = data(1, 2, seq=9, size=40)
+    body = frame[6:-4] + bytes(4)  # a CRC no candidate gives: every candidate is tried
+    recorder = _RecordingZlib()
+    monkeypatch.setattr(segments_module, "zlib", recorder)
+    assert rebuild_frame(make_segment(frame, 0, 0), body, g, m) is None
+    assert recorder.tried == documented
+
+
+@pytest.mark.parametrize("size", [10, 13, 20])
+def test_a_segmented_logical_frame_of_10_to_20_bytes_is_tolerated(size):
+    assert ("a frame of 10..20 bytes always goes unsegmented. A receiver does not check that: segments "
+            "that rebuild a logical frame of 10..20 bytes are reassembled and delivered") in _section_6()
+    frame = stop(1, 2, seq=4) if size == 10 else data(1, 2, seq=4, size=size)
+    node = MeshNode(2)
+    for segment in segments_of(frame):
+        node.receive(segment, 0.0)
+    delivered = [e for e in iter(node.next_event, None) if isinstance(e, FrameDelivered)]
+    assert [e.data for e in delivered] == [frame]
+    assert node.stats.dropped_malformed == 0

@@ -59,7 +59,7 @@ messages = st.one_of(
     st.builds(PoseUpdate, poses),
     st.builds(Heartbeat, st.sampled_from([0, *sorted(COMMAND_TYPES)]), st.integers(0, 15), st.integers(0, 2**32 - 1),
               st.integers(0, 0x1F)),
-    st.builds(SegmentAck, st.integers(0, 0xFFFF), st.integers(0, 4096), st.integers(0, 2**48 - 1)),
+    st.builds(SegmentAck, st.integers(0, 0xFFFF), st.integers(0, 512), st.integers(0, 2**48 - 1)),
     # up to 7 data bytes: a control frame (13-byte overhead); longer ones are logical frames
     st.builds(Data, st.sampled_from(DataKind), st.integers(0, 0xFFFF), st.binary(max_size=7)),
 )

@@ -104,12 +104,22 @@ def _epoch_bytes(epoch: int) -> bytes:
 def _aad_end(b0: int, b1: int, n: int) -> int | None:
     """Where the associated data of an n-byte frame ends (the rest up to the MIC is encrypted), or
     None if n does not fit its kind: a segment frame 14..29 bytes (header and SegO|SegN in the
-    clear), a Heartbeat 10..20 (all but the MIC in the clear), any other frame 10..20 (header)."""
+    clear, whatever its type), a Heartbeat exactly 17 (all but the MIC in the clear), any other
+    frame 10..20 (header). docs/protocol.md section 12."""
     if b0 & SEG_BIT:
         return _SEG_END if MIN_SEGMENT_FRAME_BYTES <= n <= MAX_PDU_BYTES else None
-    if not FRAME_OVERHEAD_BYTES <= n <= MAX_CONTROL_FRAME_BYTES:
-        return None
-    return n - MIC_BYTES if b1 & TYPE_MASK == _HEARTBEAT else HEADER_BYTES
+    if b1 & TYPE_MASK == _HEARTBEAT:  # this used to seal and open a Heartbeat of any length 10..20
+        return n - MIC_BYTES if n == HEARTBEAT_FRAME_BYTES else None
+    return HEADER_BYTES if FRAME_OVERHEAD_BYTES <= n <= MAX_CONTROL_FRAME_BYTES else None
+
+
+def _length_rule(b0: int, b1: int) -> str:
+    """The length rule _aad_end applied, for the error message."""
+    if b0 & SEG_BIT:
+        return "a segment frame is 14..29 bytes"
+    if b1 & TYPE_MASK == _HEARTBEAT:
+        return f"a Heartbeat is {HEARTBEAT_FRAME_BYTES}"
+    return "a frame is 10..20 bytes"
 
 
 class FrameSealer:
@@ -164,8 +174,8 @@ class FrameSealer:
         """The AUTH frame for CRC frame `frame` (an unsegmented frame of at most 20 bytes, or a segment
         frame of at most 29, exactly as the codec and the mesh make them) from a source whose epoch
         is `epoch` (0..2**32-1): AUTH set, payload encrypted, the MIC in place of the CRC; same
-        length. ValueError if `frame` is not such a frame (length, version, flags, CRC-32), or is a
-        Heartbeat announcing another epoch than `epoch`."""
+        length. ValueError if `frame` is not such a frame (length, version, flags, CRC-32; a Heartbeat
+        is 17 bytes), or is a Heartbeat announcing another epoch than `epoch`."""
         epoch_bytes = _epoch_bytes(epoch)
         n = len(frame)
         if n < FRAME_OVERHEAD_BYTES or frame[0] & _VERSION_AUTH_MASK != _PLAIN_B0:
@@ -173,12 +183,12 @@ class FrameSealer:
         b0 = frame[0]
         end = _aad_end(b0, frame[1], n)
         if end is None:
-            raise ValueError(f"{n}-byte frame: a frame is 10..20 bytes, a segment frame 14..29")
+            raise ValueError(f"{n}-byte frame: {_length_rule(b0, frame[1])}")
         body = n - INTEGRITY_BYTES
         if zlib.crc32(frame[:body]) != _U32.unpack_from(frame, body)[0]:
             raise ValueError("CRC-32 mismatch: only intact CRC frames are sealed")
         aad = bytes((b0 | AUTH_BIT,)) + frame[1:end]
-        if n == HEARTBEAT_FRAME_BYTES and end == body and frame[_EPOCH_AT] != epoch_bytes:
+        if n == HEARTBEAT_FRAME_BYTES and end == body and frame[_EPOCH_AT] != epoch_bytes:  # a Heartbeat
             announced = _U32.unpack_from(frame, HEARTBEAT_EPOCH_OFFSET)[0]
             raise ValueError(f"Heartbeat announces epoch {announced}, sealed with {epoch}")
         segment = frame[HEADER_BYTES:_SEG_END] if b0 & SEG_BIT else _NO_SEGMENT
@@ -198,8 +208,8 @@ class FrameSealer:
             raise AuthenticationError(f"byte 0 is {b0:#04x}: not a sealed (AUTH) frame of version 1")
         end = _aad_end(b0, frame[1], n)
         if end is None:
-            raise AuthenticationError(f"{n}-byte sealed frame: 10..20 bytes, a segment frame 14..29")
-        if n == HEARTBEAT_FRAME_BYTES and end == n - MIC_BYTES and frame[_EPOCH_AT] != epoch_bytes:
+            raise AuthenticationError(f"{n}-byte sealed frame: {_length_rule(b0, frame[1])}")
+        if n == HEARTBEAT_FRAME_BYTES and end == n - MIC_BYTES and frame[_EPOCH_AT] != epoch_bytes:  # a Heartbeat
             announced = _U32.unpack_from(frame, HEARTBEAT_EPOCH_OFFSET)[0]
             raise AuthenticationError(f"Heartbeat announces epoch {announced}, opened with {epoch}")
         aad = frame[:end]
@@ -214,7 +224,7 @@ class FrameSealer:
     @staticmethod
     def heartbeat_epoch(frame: bytes) -> int | None:
         """The epoch a sealed Heartbeat announces in the clear (frame bytes 8-11), to open it with;
-        None if `frame` is not a 16-byte sealed, unsegmented Heartbeat. Unverified until open()."""
+        None if `frame` is not a 17-byte sealed, unsegmented Heartbeat. Unverified until open()."""
         if (
             len(frame) != HEARTBEAT_FRAME_BYTES
             or frame[0] & (_VERSION_AUTH_MASK | SEG_BIT) != _SEALED_B0

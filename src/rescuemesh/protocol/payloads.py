@@ -38,8 +38,10 @@ from .messages import (
 from .wire import (
     BROADCAST,
     DATA_HEADER_BYTES,
+    HEADER_BYTES,
     MAX_DATA_BYTES,
     MAX_FORWARD_INNER_BYTES,
+    MAX_MESSAGE_BYTES,
     MAX_TTL,
     SEGMENT_ACK_BITMAP_BITS,
     TYPE_MASK,
@@ -69,8 +71,9 @@ _REASON_BY_VALUE: tuple[Reason | None, ...] = tuple(
 _KIND_BY_VALUE: tuple[DataKind | None, ...] = tuple(
     DataKind(v) if v in DataKind._value2member_map_ else None for v in range(256)
 )
-#: Largest segment index + 1 a SegmentAck's base may name (4096 segments, docs/mesh.md).
-MAX_SEGMENTS = 4096
+#: Segments of the largest logical frame, ceil((8192 - 6) / 16) = 512 (16 bytes per segment, SegN
+#: 0..511, docs/mesh.md section 6): a SegmentAck's base is 0..512 (docs/protocol.md section 4).
+MAX_SEGMENTS = -(-(MAX_MESSAGE_BYTES - HEADER_BYTES) // 16)
 _HEARTBEAT_COMMANDS = frozenset({0, *COMMAND_TYPES})
 _CONFIRMABLE = CONFIRMABLE_TYPES
 
