@@ -218,6 +218,11 @@ def test_decoding_order_step_1_names_both_length_errors():
     assert len(data) == 8193
     with pytest.raises(MalformedPayload):
         decode_frame(data)
+    # the length comes before the version (step 2) and the CRC (step 4)
+    with pytest.raises(MalformedPayload):
+        decode_frame(bytes((0x83,)) + data[1:])
+    with pytest.raises(MalformedPayload):
+        decode_frame(data[:-1] + bytes((data[-1] ^ 1,)))
 
 
 # --- sections 7 and 8: defaults and result transitions ----------------------------------------------
