@@ -80,7 +80,7 @@ def _check_common(data: bytes) -> int:
     if b0 >> 6 != PROTOCOL_VERSION:
         raise UnsupportedVersion(f"version {b0 >> 6}, this node speaks {PROTOCOL_VERSION}")
     if b0 & AUTH_BIT:
-        raise UnsupportedFeature("AUTH flag (AES-CCM MIC-32) is not implemented yet")
+        raise UnsupportedFeature("AUTH flag: a sealed frame, to be opened first (a node without a sealer drops it)")
     if not crc_ok(data):
         raise IntegrityError("CRC-32 mismatch")
     return b0

@@ -55,7 +55,8 @@ from .wire import (  # noqa: F401  (field pairs and constants re-exported: codec
 
 
 class FrameFlags(IntFlag):
-    """Header byte 0, bits 5-4 (shifted down by 4). Both are reserved for later issues."""
+    """Header byte 0, bits 5-4 (shifted down by 4). Both belong to the mesh layer (docs/protocol.md
+    section 9): the codec never sets them and decode_frame rejects them."""
 
     NONE = 0
     SEG = 1  # payload is one segment of a bulk message (camera image, scan)
@@ -123,7 +124,7 @@ def push_header(buf: bytearray, h: Header) -> None:
     if h.version != PROTOCOL_VERSION:
         raise EncodeError(f"version {h.version} is not {PROTOCOL_VERSION}")
     if h.flags:
-        raise EncodeError(f"flags {h.flags!r} are not implemented yet")
+        raise EncodeError(f"flags {h.flags!r}: the mesh layer sets AUTH and SEG, never the codec")
     if not (0 <= h.ttl <= MAX_TTL and 0 <= h.attempt <= MAX_ATTEMPT):
         raise EncodeError(f"ttl {h.ttl} or attempt {h.attempt} out of range (0..15, 0..3)")
     if not (0 <= h.src <= MAX_UNICAST_ADDRESS and 0 <= h.dst <= BROADCAST and 0 <= h.seq <= MAX_SEQ):
@@ -195,13 +196,13 @@ def decode_frame(data: bytes) -> tuple[Header, Message]:
     b0 = data[0]
     if b0 >> 6 != PROTOCOL_VERSION:
         raise UnsupportedVersion(f"version {b0 >> 6}, this endpoint speaks {PROTOCOL_VERSION}")
-    if b0 & _AUTH_BIT:  # the integrity field is a MIC we cannot check yet
-        raise UnsupportedFeature("AUTH flag (AES-CCM MIC-32) is not implemented yet")
+    if b0 & _AUTH_BIT:  # the integrity field is a MIC: the mesh layer opens sealed frames
+        raise UnsupportedFeature("AUTH flag: a sealed frame, which the mesh layer opens (docs/protocol.md section 12)")
     end = n - INTEGRITY_BYTES
     if zlib.crc32(data[:end]) != _U32.unpack_from(data, end)[0]:
         raise IntegrityError("CRC-32 mismatch")
     if b0 & _SEG_BIT:  # checked after the CRC, which covers it
-        raise UnsupportedFeature("SEG flag (segmented bulk data) is not implemented yet")
+        raise UnsupportedFeature("SEG flag: a segment frame, which the mesh layer reassembles (docs/mesh.md section 6)")
     header, offset = pull_header(data, 0)
     return header, pull_payload(header.msg_type, data, offset, end)
 
