@@ -67,7 +67,7 @@ def test_frame_key_salt_and_info_are_the_documented_ascii_bytes():
 def test_frame_key_is_derived_not_the_team_key():
     team_key = bytes(range(16))
     frame_key = derive_frame_key(team_key)
-    # docs/security.md section 2 and docs/protocol.md section 12 quote this value
+    # docs/protocol.md section 12 quotes this value (its worked examples)
     assert frame_key.hex() == "c206d32b7be45ab519faaf940d4dc529"
     assert frame_key == hkdf_sha256(team_key, b"rescuemesh v1", b"frame encryption", 16)
     assert derive_frame_key(bytes(16)) != derive_frame_key(bytes(15) + b"\x01")
