@@ -9,7 +9,7 @@ BIN    := $(VENV)/bin
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e '.[sim,ble,test]'
+	$(BIN)/pip install --quiet -e '.[sim,ble,cluster,test]'
 	touch $@
 
 demo: $(VENV)/.installed

@@ -44,6 +44,8 @@ SEAL_GOAL_FPS = 50_000
 CHAIN_HOPS = (1, 2, 4, 6)
 RELAYED_DELIVERY_GOAL = 0.999
 LOSS_FOR_DELIVERY = 0.3
+#: The sweep bench: this many follow runs (two loss values, seeds from the bench's), with 1 and 2 workers.
+SWEEP_BENCH_RUNS = 8
 
 
 def run_bench(out: Path, *, seed: int = 0) -> int:
@@ -78,6 +80,7 @@ def run_bench(out: Path, *, seed: int = 0) -> int:
     figures["slam_like"] = _slam_like_figures(seed)
     figures["teams"] = _team_figures(seed)
     figures["network"] = _network_figures(seed)
+    figures["sweep"] = _sweep_figures(seed)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(figures, indent=2) + "\n")
     print(f"wrote {out}")
@@ -184,3 +187,33 @@ def _network_figures(seed: int) -> dict:
     return {"confirm_latency_by_hops": chain, "delivery_ratio_direct": direct, "delivery_ratio_two_relays": relayed,
             "delivery_ratio_paper_3_sends": round(paper, 4), "extra_loss": LOSS_FOR_DELIVERY,
             "goals": {"six_hops_p50_ms": 200, "delivery_ratio_two_relays": RELAYED_DELIVERY_GOAL}}
+
+
+def _sweep_figures(seed: int) -> dict:
+    """A sweep's throughput: the same small grid of follow runs with 1 and 2 local workers (runs per
+    minute and their ratio), and the engine's cost per run beyond the runs themselves (pool start,
+    worker imports, row writing), from the 1-worker sweep: its wall time less its runs' own."""
+    from rescuemesh.experiments import LocalPool, load_rows, load_sweep, run_sweep
+
+    figures: dict = {}
+    with tempfile.TemporaryDirectory(prefix="rescuemesh-bench-") as folder:
+        path = Path(folder) / "bench.yaml"
+        path.write_text(f"sweep: bench\nscenario: follow\naxes:\n  loss: [0.0, 0.1]\n"
+                        f"seeds: {{from: {seed}, count: {SWEEP_BENCH_RUNS // 2}}}\n")
+        sweep = load_sweep(path)
+        for workers in (1, 2):
+            out = Path(folder) / f"w{workers}"
+            summary = run_sweep(sweep, out, LocalPool(workers))
+            rows = load_rows(out)
+            run_s = sum(r.get("wall_time_s") or 0.0 for r in rows)
+            figures[f"workers_{workers}"] = {
+                "runs": summary.ran, "wall_s": round(summary.wall_s, 2),
+                "runs_per_minute": round(60.0 * summary.ran / summary.wall_s, 1),
+                "engine_s_per_run": round((summary.wall_s * workers - run_s) / summary.ran, 3),
+                "all_rows_ok": all(r["status"] in ("success", "failed") for r in rows)}
+    one, two = figures["workers_1"], figures["workers_2"]
+    figures["speedup_2_over_1"] = round(two["runs_per_minute"] / one["runs_per_minute"], 2)
+    print(f"sweep           : {one['runs']} follow runs: {one['runs_per_minute']} runs/min with 1 worker, "
+          f"{two['runs_per_minute']} with 2 ({figures['speedup_2_over_1']}x); the engine costs "
+          f"{one['engine_s_per_run']:.2f} s per run beyond the run (pool start, imports, rows)")
+    return figures

@@ -84,9 +84,10 @@ def _folder(text: str) -> Path:
 
 
 #: What each extra of pyproject.toml brings, as the modules a command imports.
-_EXTRA_MODULES = {"sim": ("mujoco", "numba", "matplotlib", "mcap", "foxglove"), "ble": ("bumble",)}
+_EXTRA_MODULES = {"sim": ("mujoco", "numba", "matplotlib", "mcap", "foxglove", "pyarrow"), "ble": ("bumble",)}
 #: Commands and the extra they need; a robot process (`rescuemesh robot`) needs none.
-_COMMAND_EXTRA = {"run": "sim", "world": "sim", "bench": "sim", "radio-map": "sim", "ble-check": "ble"}
+_COMMAND_EXTRA = {"run": "sim", "world": "sim", "bench": "sim", "radio-map": "sim", "ble-check": "ble", "sweep": "sim",
+                  "report": "sim"}
 
 
 def _require_extra(command: str) -> None:
@@ -188,6 +189,9 @@ def build_parser() -> argparse.ArgumentParser:
     bench = sub.add_parser("bench", help="measure the real-time factor and the codec rate")
     bench.add_argument("--out", type=Path, default=Path("out/bench.json"), help="JSON file for the figures")
     bench.add_argument("--seed", type=int, default=0)
+    from rescuemesh.cli_experiments import add_parsers as add_experiment_parsers
+
+    add_experiment_parsers(sub)
     return parser
 
 
@@ -230,6 +234,8 @@ def _main(argv: list[str] | None) -> int:
             return main_ble_check(args.hci, sys.stdout, err=sys.stderr)
         if args.command == "robot":
             return _robot(args)
+        if args.command in ("sweep", "report"):
+            return _experiments(args)
         if args.command == "bench":
             from rescuemesh.bench import run_bench
 
@@ -245,6 +251,16 @@ def _main(argv: list[str] | None) -> int:
     except KeyboardInterrupt:
         print("rescuemesh: interrupted", file=sys.stderr)
         return 130
+
+
+def _experiments(args) -> int:
+    from rescuemesh.cli_experiments import main_report, main_sweep
+    from rescuemesh.experiments import SweepError
+
+    try:
+        return main_sweep(args) if args.command == "sweep" else main_report(args)
+    except SweepError as error:
+        raise UsageError(str(error)) from None
 
 
 def _list_scenarios() -> int:

@@ -10,6 +10,8 @@ import json
 import math
 from pathlib import Path
 
+from rescuemesh.protocol import MessageType
+
 
 def _path_length(samples) -> float:
     return sum(a.pose.distance_to(b.pose) for a, b in zip(samples, samples[1:]))
@@ -53,6 +55,8 @@ def build_result(scenario, rt, verdict, wall_time_s: float, map_model) -> dict:
             "heartbeat_period_s": rt.config.mesh.heartbeat_period_s,
             "link_lost_after_missed_heartbeats": rt.config.mesh.lost_after_missed,
             "reconnect_window_s": rt.config.brain.reconnect_window_s,
+            "link_loss_policy": {t.name: rt.config.brain.policy_for(t).value  # the nine commands (types 1..9)
+                                 for t in MessageType if 1 <= t.value <= 9},
             "ack_timeout_s": rt.config.ack_timeout_s,
             "max_sends": rt.config.max_sends,
             "physics_dt_s": rt.config.physics_dt,

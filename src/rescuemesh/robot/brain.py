@@ -55,7 +55,8 @@ from rescuemesh.robot.behaviours import (
     NavigateBehaviour,
     circle_waypoints,
 )
-from rescuemesh.robot.forwarding import Forwarder
+from rescuemesh.robot.custody import HeldReport, ReportCustody
+from rescuemesh.robot.forwarding import Forwarder, JobProgress
 from rescuemesh.robot.naming import robot_name
 from rescuemesh.robot.policy import MOTION_LEVEL, Priority, Rank, Resource, conflict, priority_of, resources_of
 from rescuemesh.robot.landing import LandOnTopBehaviour
@@ -66,6 +67,7 @@ from rescuemesh.robot.records import (
     BrainConfig,
     BrainEvent,
     FinishedBehaviour,
+    LinkLossPolicy,
     OutgoingCommand,
     PoseStream,
     Running,
@@ -107,7 +109,11 @@ class RobotBrain(SensorCommands):
         #: Bulk data received (scans, images): (time s, source, kind, command seq, bytes, hops).
         self.received_data: deque[tuple[float, int, DataKind, int, bytes, int]] = deque(maxlen=64)
         self.forwarder = Forwarder(self.address, timeout_s=self.config.forward_timeout_s,
-                                   capacity=self.config.forward_capacity)
+                                   capacity=self.config.forward_capacity,
+                                   result_timeout_s=self.config.forward_result_timeout_s)
+        #: Final reports held for commanders out of reach, sent again once they are heard.
+        self.custody = ReportCustody(capacity=self.config.report_custody_capacity,
+                                     hold_s=self.config.report_custody_hold_s)
         self._next_heartbeat_s = 0.0  # the first at once (peers learn our epoch from it), then on our phase
         self._heartbeat_phase_s = heartbeat_phase_s(self.address, self.config.heartbeat_period_s)
         self._handlers = {Follow: self._on_follow, Stop: self._on_stop, MoveAround: self._on_move_around,
@@ -170,6 +176,8 @@ class RobotBrain(SensorCommands):
             self._on_network[type(event)](event, now)
         self._end_lost_links(now)
         self._repeat_final_reports(now)
+        if self.custody.reports:
+            self._deliver_held_reports(now)
         self._forward(now)
         self._stream_poses(now)
         if now >= self._next_heartbeat_s:
@@ -210,6 +218,8 @@ class RobotBrain(SensorCommands):
         if running.commander is None or running.seq is None or running.msg_type not in REPORTS_PROGRESS \
                 or now < running.next_report_s:
             return
+        if not self.network.is_reachable(running.commander, now):
+            return  # nobody to hear it: the final report is held for the commander instead
         running.next_report_s = now + self.config.progress_period_s
         self.endpoint.confirm(running.commander, running.seq, running.msg_type, ResultCode.IN_PROGRESS, now,
                               progress=running.behaviour.progress())
@@ -236,6 +246,12 @@ class RobotBrain(SensorCommands):
 
     def _on_data(self, event: DataReceived, now: float) -> None:
         self.endpoint.confirm(event.src, event.seq, MessageType.DATA, ResultCode.ACCEPTED, now)
+        job = self.forwarder.answering(event.src, event.ref_seq)
+        if job is not None:  # a forwarded command's data: on to the robot that asked, answering its ForwardMsg
+            self.endpoint.send_data(job.sender, event.kind, job.seq, event.data, now)
+            self._note(now, "forward_data", f"{event.kind.name} {len(event.data)} B from {robot_name(event.src)} "
+                                            f"to {robot_name(job.sender)}")
+            return
         self.received_data.append((event.now, event.src, event.kind, event.ref_seq, event.data, event.hops))
         self._note(event.now, "data_received", f"{event.kind.name} {len(event.data)} B from {robot_name(event.src)}")
 
@@ -353,9 +369,14 @@ class RobotBrain(SensorCommands):
                     del self.streams[event.src]
                     self._note(now, "follow_ended", f"{robot_name(event.src)} answered {event.result.name}")
             return
-        ended = self.forwarder.confirmed(event.src, event.ref_seq)
-        if ended is not None:
-            self._report_forward(ended, now, f"{robot_name(event.src)} answered {event.result.name}")
+        update = self.forwarder.confirmed(event.src, event.ref_seq, event.result, event.reason, event.progress, now)
+        if isinstance(update, JobProgress):  # the target runs it: tell the robot that asked
+            job = update.job
+            self.endpoint.confirm(job.sender, job.seq, MessageType.FORWARD_MSG, ResultCode.IN_PROGRESS, now,
+                                  progress=update.progress)
+            return
+        if update is not None:
+            self._report_forward(update, now, f"{robot_name(event.src)} answered {event.result.name}")
             return
         sent = self.outgoing.get(event.ref_seq)
         if sent is None or sent.peer != event.src:
@@ -413,9 +434,24 @@ class RobotBrain(SensorCommands):
         peer = event.address
         if not self._shares_command_with(peer) or peer in self.lost_peers:
             return
+        running = self.running
+        if running is not None and running.commander == peer and peer not in self.streams:
+            policy = self.config.policy_for(running.msg_type)
+            if policy is LinkLossPolicy.CONTINUE:
+                self._note(now, "link_lost", f"{robot_name(peer)} silent since {event.last_heard_s:.2f} s: "
+                                             f"{running.behaviour.name} continues (link-loss policy continue)")
+                return
+            if policy is LinkLossPolicy.RETURN_TO_BASE:
+                self._note(now, "link_lost", f"{robot_name(peer)} silent since {event.last_heard_s:.2f} s: "
+                                             f"returning to base (link-loss policy return_to_base)")
+                self._end_running(now, ResultCode.FAILED, Reason.LINK_LOST, "link lost: returned to base")
+                base = self.config.base if self.config.base is not None else self.body.pose()
+                self._start(Running(NavigateBehaviour(self.nav, base, now), now), now)
+                return
         self.lost_peers[peer] = now + self.config.reconnect_window_s
-        if self.running is not None and self.running.commander == peer:
-            self.running.behaviour.pause(now)
+        if running is not None and running.commander == peer:
+            running.behaviour.pause(now)
+            running.paused_for_link = True
             self.body.set_velocity(0.0, 0.0)
         if peer in self.streams:
             self.streams[peer].paused = True
@@ -426,8 +462,9 @@ class RobotBrain(SensorCommands):
         peer = event.address
         if self.lost_peers.pop(peer, None) is None:
             return
-        if self.running is not None and self.running.commander == peer:
+        if self.running is not None and self.running.commander == peer and self.running.paused_for_link:
             self.running.behaviour.resume(now)
+            self.running.paused_for_link = False
         stream = self.streams.get(peer)
         if stream is not None:
             stream.paused, stream.last_confirmed_s = False, now
@@ -439,7 +476,7 @@ class RobotBrain(SensorCommands):
             if now < deadline:
                 continue
             del self.lost_peers[peer]
-            if self.running is not None and self.running.commander == peer:
+            if self.running is not None and self.running.commander == peer and self.running.paused_for_link:
                 self._end_running(now, ResultCode.FAILED, Reason.LINK_LOST, "link lost")
             if peer in self.streams:
                 self._end_stream(peer, now, Reason.LINK_LOST, "link lost")
@@ -474,8 +511,8 @@ class RobotBrain(SensorCommands):
 
     def _report_forward(self, ended, now: float, detail: str) -> None:
         job = ended.job
-        progress = 100 if ended.result == ResultCode.DONE else 255
-        self._final_report(job.sender, job.seq, MessageType.FORWARD_MSG, ended.result, ended.reason, now, progress)
+        self._final_report(job.sender, job.seq, MessageType.FORWARD_MSG, ended.result, ended.reason, now,
+                           ended.progress)
         self._note(now, "forward_ended", f"{ended.result.name} {ended.reason.name}: {detail}".replace(" NONE", ""))
 
     def _stopped_since(self, peer: int, since_s: float) -> bool:
@@ -531,10 +568,32 @@ class RobotBrain(SensorCommands):
                       now: float, progress: int) -> None:
         """Report a command's final result to its commander: an unsolicited Confirm, not confirmed
         in turn, so it goes out `final_report_copies` times, `final_report_spacing_s` apart."""
+        self._send_final_report(commander, seq, msg_type, result, code, now, progress)
+        if not self.network.is_reachable(commander, now):  # its copies are likely lost: keep it
+            self.custody.hold(HeldReport(commander, seq, msg_type, result, code, progress, now))
+            self._note(now, "report_held", f"{msg_type.name} {result.name} for {robot_name(commander)}, out of reach")
+
+    def _send_final_report(self, commander: int, seq: int, msg_type: MessageType, result: ResultCode, code: Reason,
+                           now: float, progress: int) -> None:
         self.endpoint.confirm(commander, seq, msg_type, result, now, progress=progress, reason=code)
         if self.config.final_report_copies > 1:
             self._repeats.append((now + self.config.final_report_spacing_s, commander, seq,
                                   self.config.final_report_copies - 1))
+
+    def _deliver_held_reports(self, now: float) -> None:
+        """Held final reports whose commander is reachable again go out (in copies); old ones are dropped."""
+        copies, spacing = self.config.final_report_copies, self.config.final_report_spacing_s
+        for r in self.custody.due(now, self.network.is_reachable):
+            if not self.endpoint.repeat_report(r.commander, r.seq):  # the endpoint forgot it: report afresh
+                self.endpoint.confirm(r.commander, r.seq, r.msg_type, r.result, now, progress=r.progress,
+                                      reason=r.reason)
+            if copies > 1:
+                self._repeats.append((now + spacing, r.commander, r.seq, copies - 1))
+            self._note(now, "report_delivered", f"{r.msg_type.name} {r.result.name} to {robot_name(r.commander)}, "
+                                                f"held {now - r.held_s:.1f} s")
+        for r in self.custody.expired(now):
+            self._note(now, "report_dropped", f"{r.msg_type.name} {r.result.name} for {robot_name(r.commander)}: "
+                                              f"not heard in {self.custody.hold_s:g} s")
 
     def _note(self, now: float, kind: str, detail: str = "") -> None:
         self.log.append(BrainEvent(round(now, 3), self.name, kind, detail))

@@ -13,10 +13,25 @@ The brain asks it what to send and tells it what the target answered.
 # command or Data (DENIED, BAD_REQUEST), or `capacity` jobs are held already (DENIED, BUSY).
 #
 #   WAITING --target reachable (heard, not lost)---> SENT (inner sent to target, confirmed/retried)
-#   SENT    --target confirms, any result----------> removed, S gets DONE (progress 100)
+#   SENT    --target answers a final result--------> removed, S gets that result and reason (see below)
+#   SENT    --target ACCEPTED a command that reports progress (Goto, Return, MoveAround, ShowScan,
+#             ShowCam, LandOnTop)---------------------> RUNNING, S gets IN_PROGRESS; the deadline
+#                                                    becomes accepted + result_timeout_s
+#   RUNNING --target reports IN_PROGRESS-----------> S gets IN_PROGRESS with the target's progress
+#   RUNNING --target reports a final result--------> removed, S gets that result and reason
 #   SENT    --DeliveryFailed (all sends unanswered)-> WAITING (try again when reachable)
-#   any     --deadline (received + timeout_s)------> removed, S gets FAILED: TIMEOUT if never
-#                                                    sent, NOT_DELIVERED if sent but unconfirmed
+#   any     --deadline------------------------------> removed, S gets FAILED: TIMEOUT if never
+#                                                    sent or never finished, NOT_DELIVERED if
+#                                                    sent but unconfirmed
+#
+# So S's result is the inner command's own outcome, end to end: DONE when the target finished it.
+# A command that does not report progress (Stop, Follow, a ForwardMsg) and Data end with the
+# target's first answer. After the forwarder's own ACCEPTED only IN_PROGRESS, DONE, FAILED or
+# CANCELLED may follow (docs/protocol.md, result transitions), so the target's answer is mapped:
+# ACCEPTED (a Follow taken, Data arrived) and DONE -> DONE; FAILED and CANCELLED as they are;
+# DENIED, UNSUPPORTED and TEMPORARILY_REJECTED -> FAILED with the target's reason (BAD_REQUEST
+# when it gave none). Data the target sends in answer to the inner command (a ShowScan's scans) is forwarded
+# to S as Data answering S's ForwardMsg (ref_seq = the ForwardMsg's seq).
 #
 # The inner message leaves from the forwarder's own address (it is the one that will get the
 # Confirm); a long one (over 9 bytes, or a Data) is segmented by the mesh layer like any frame.
@@ -26,12 +41,22 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import Enum
 
-from rescuemesh.protocol import BROADCAST, Data, FrameError, Message, Reason, ResultCode, decode_inner, is_command
+from rescuemesh.protocol import (BROADCAST, Data, FrameError, Message, MessageType, Reason, ResultCode, decode_inner,
+                                 is_command)
+
+#: Results after which the target does no more with a command (MAVLink: anything but IN_PROGRESS
+#: and, for a long-running command, ACCEPTED).
+FINAL_RESULTS = frozenset({ResultCode.DONE, ResultCode.FAILED, ResultCode.CANCELLED, ResultCode.DENIED,
+                           ResultCode.UNSUPPORTED, ResultCode.TEMPORARILY_REJECTED})
+#: Inner commands whose target reports progress and a final result (robot/records.py REPORTS_PROGRESS).
+LONG_RUNNING = frozenset({MessageType.GOTO, MessageType.RETURN, MessageType.MOVE_AROUND, MessageType.SHOW_SCAN,
+                          MessageType.SHOW_CAM, MessageType.LAND_ON_TOP})
 
 
 class JobState(Enum):
     WAITING = "waiting"
     SENT = "sent"
+    RUNNING = "running"  # the target accepted a long-running command: its result is awaited
 
 
 @dataclass
@@ -51,23 +76,39 @@ class ForwardJob:
 
 @dataclass(frozen=True, slots=True)
 class JobEnded:
-    """What to report to the job's sender: `result` with `reason`."""
+    """What to report to the job's sender, finally: `result` with `reason`."""
 
     job: ForwardJob
     result: ResultCode
     reason: Reason
+    progress: int = 255
+
+
+@dataclass(frozen=True, slots=True)
+class JobProgress:
+    """The target runs the forwarded command: report IN_PROGRESS with `progress` to the sender."""
+
+    job: ForwardJob
+    progress: int
 
 
 class Forwarder:
     """The jobs of one robot. `timeout_s`: how long a job is held, in s; `capacity`: how many at once."""
 
-    def __init__(self, own_address: int, *, timeout_s: float = 30.0, capacity: int = 8) -> None:
-        if not timeout_s > 0.0 or capacity < 1:
-            raise ValueError(f"forwarding needs timeout_s > 0 and capacity >= 1, got {timeout_s!r}, {capacity!r}")
+    def __init__(self, own_address: int, *, timeout_s: float = 30.0, capacity: int = 8,
+                 result_timeout_s: float = 600.0) -> None:
+        if not timeout_s > 0.0 or capacity < 1 or not result_timeout_s > 0.0:
+            raise ValueError(f"forwarding needs timeouts > 0 and capacity >= 1, got {timeout_s!r}, {capacity!r}, "
+                             f"{result_timeout_s!r}")
         self.own_address = own_address
         self.timeout_s = timeout_s
+        self.result_timeout_s = result_timeout_s
         self.capacity = capacity
         self.jobs: list[ForwardJob] = []
+        #: Jobs that ended lately, by (target, inner seq): data the target sent before its final
+        #: report but that arrives after it (a segmented scan is slower than a Confirm) still finds
+        #: the robot that asked. Bounded: the last `capacity` jobs.
+        self._ended: dict[tuple[int, int], ForwardJob] = {}
 
     def accept(self, sender: int, seq: int, target: int, inner_bytes: bytes, now: float) -> ForwardJob | Reason:
         """A new job, or the reason to refuse it (DENIED)."""
@@ -93,13 +134,36 @@ class Forwarder:
         job.state, job.sent_seq = JobState.SENT, seq
         job.sends += 1
 
-    def confirmed(self, src: int, ref_seq: int) -> JobEnded | None:
-        """The target answered the inner message: the job is done."""
+    def confirmed(self, src: int, ref_seq: int, result: ResultCode, reason: Reason, progress: int,
+                  now: float) -> JobEnded | JobProgress | None:
+        """The target answered or reported on the inner message: what to tell the job's sender
+        (None: `src`/`ref_seq` is not a forwarded message)."""
         job = self._sent_job(src, ref_seq)
         if job is None:
             return None
+        long_running = is_command(job.inner) and job.inner.TYPE in LONG_RUNNING
+        if long_running and result not in FINAL_RESULTS:
+            if job.state is JobState.SENT:
+                job.state, job.deadline_s = JobState.RUNNING, now + self.result_timeout_s
+            return JobProgress(job, progress if result == ResultCode.IN_PROGRESS else 0)
+        self._end(job)
+        if result in (ResultCode.ACCEPTED, ResultCode.DONE):  # a short command taken, data arrived, a drive done
+            return JobEnded(job, ResultCode.DONE, Reason.NONE if result == ResultCode.ACCEPTED else reason, 100)
+        if result in (ResultCode.FAILED, ResultCode.CANCELLED):
+            return JobEnded(job, result, reason, progress)
+        # DENIED, UNSUPPORTED, TEMPORARILY_REJECTED: after our ACCEPTED only FAILED may say it
+        return JobEnded(job, ResultCode.FAILED, reason if reason is not Reason.NONE else Reason.BAD_REQUEST, progress)
+
+    def answering(self, src: int, ref_seq: int) -> ForwardJob | None:
+        """The job (running, or ended lately) whose inner command `src` answers with Data (ref_seq:
+        the inner frame's seq)."""
+        return self._sent_job(src, ref_seq) or self._ended.get((src, ref_seq))
+
+    def _end(self, job: ForwardJob) -> None:
         self.jobs.remove(job)
-        return JobEnded(job, ResultCode.DONE, Reason.NONE)
+        self._ended[(job.target, job.sent_seq)] = job
+        while len(self._ended) > self.capacity:
+            del self._ended[next(iter(self._ended))]
 
     def undelivered(self, dst: int, seq: int) -> bool:
         """All sends of the inner message went unanswered: wait for the target again. False if
@@ -114,9 +178,10 @@ class Forwarder:
         ended = []
         for job in [j for j in self.jobs if now >= j.deadline_s]:
             self.jobs.remove(job)
-            ended.append(JobEnded(job, ResultCode.FAILED, Reason.NOT_DELIVERED if job.sends else Reason.TIMEOUT))
+            unconfirmed = job.sends and job.state is not JobState.RUNNING
+            ended.append(JobEnded(job, ResultCode.FAILED, Reason.NOT_DELIVERED if unconfirmed else Reason.TIMEOUT))
         return ended
 
     def _sent_job(self, target: int, seq: int) -> ForwardJob | None:
-        return next((j for j in self.jobs if j.state is JobState.SENT and j.target == target and j.sent_seq == seq),
-                    None)
+        return next((j for j in self.jobs if j.state is not JobState.WAITING and j.target == target
+                     and j.sent_seq == seq), None)

@@ -8,6 +8,7 @@ simulator, the transport, the clock.
 
 from __future__ import annotations
 
+import enum
 import math
 from dataclasses import dataclass, field
 
@@ -15,6 +16,22 @@ from rescuemesh.geometry import Pose2D
 from rescuemesh.protocol import MessageType, Pose, Reason, ResultCode
 from rescuemesh.robot.behaviours import Behaviour
 from rescuemesh.robot.policy import MOTION_LEVEL, Priority, Rank, Resource
+
+
+class LinkLossPolicy(enum.Enum):
+    """What a robot does with a command when its commander's link is lost (MAVLink's failsafe
+    actions: hold, continue the mission, return to launch). The final report of a command whose
+    commander is out of reach is held and delivered when it is heard again (robot/custody.py)."""
+
+    HOLD = "hold"  # the paper's rule (IV.A): halt; heard again within the reconnect window: resume; else FAILED
+    CONTINUE = "continue"  # carry on; the result is reported when the commander is heard again
+    RETURN_TO_BASE = "return_to_base"  # end it FAILED (link lost) at once and drive to the base
+
+
+def _default_link_loss_policies() -> dict:
+    # Following and circling need the commander; a drive to a pose does not (it is where the
+    # commander asked the robot to go, and the robot can report there later).
+    return {MessageType.GOTO: LinkLossPolicy.CONTINUE, MessageType.RETURN: LinkLossPolicy.CONTINUE}
 
 
 @dataclass(frozen=True)
@@ -46,6 +63,16 @@ class BrainConfig:
     camera_range_m: float = 4.0  # ... for ShowCam
     show_timeout_s: float = 120.0  # an open-ended ShowScan/ShowCam (count 0) ends after this
     laser_fov_rad: float = math.radians(240.0)  # a ShowScan runs beside a drive if the spot is in this
+    #: Per command type, what to do when its commander's link is lost; types not listed: HOLD.
+    link_loss_policy: dict = field(default_factory=_default_link_loss_policies)
+    report_custody_capacity: int = 16  # final reports held for commanders out of reach (robot/custody.py)
+    report_custody_hold_s: float = 600.0  # ... each for at most this long, in s
+    #: How long a forwarder waits for the final result of a forwarded command that reports progress
+    #: (Goto, Return, MoveAround, ShowScan, ShowCam, LandOnTop) once its target accepted it, in s.
+    forward_result_timeout_s: float = 600.0
+
+    def policy_for(self, msg_type) -> LinkLossPolicy:
+        return self.link_loss_policy.get(msg_type, LinkLossPolicy.HOLD)
 
 
 @dataclass(frozen=True, slots=True)
@@ -110,6 +137,7 @@ class Running:
     priority: Priority = Priority(Rank.PEER, MOTION_LEVEL)
     resources: Resource = Resource.MOTION
     next_report_s: float = 0.0
+    paused_for_link: bool = False  # halted by the HOLD link-loss policy, waiting for the commander
 
 
 #: Commands after which the sender streams its pose (PoseUpdates) to the receiver until it ends.
