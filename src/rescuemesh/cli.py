@@ -87,7 +87,7 @@ def _folder(text: str) -> Path:
 _EXTRA_MODULES = {"sim": ("mujoco", "numba", "matplotlib", "mcap", "foxglove", "pyarrow"), "ble": ("bumble",)}
 #: Commands and the extra they need; a robot process (`rescuemesh robot`) needs none.
 _COMMAND_EXTRA = {"run": "sim", "world": "sim", "bench": "sim", "radio-map": "sim", "ble-check": "ble", "sweep": "sim",
-                  "report": "sim"}
+                  "report": "sim", "check": "sim"}
 
 
 def _require_extra(command: str) -> None:
@@ -234,7 +234,7 @@ def _main(argv: list[str] | None) -> int:
             return main_ble_check(args.hci, sys.stdout, err=sys.stderr)
         if args.command == "robot":
             return _robot(args)
-        if args.command in ("sweep", "report"):
+        if args.command in ("sweep", "report", "check"):
             return _experiments(args)
         if args.command == "bench":
             from rescuemesh.bench import run_bench
@@ -254,11 +254,11 @@ def _main(argv: list[str] | None) -> int:
 
 
 def _experiments(args) -> int:
-    from rescuemesh.cli_experiments import main_report, main_sweep
+    from rescuemesh.cli_experiments import main_check, main_report, main_sweep
     from rescuemesh.experiments import SweepError
 
     try:
-        return main_sweep(args) if args.command == "sweep" else main_report(args)
+        return {"sweep": main_sweep, "report": main_report, "check": main_check}[args.command](args)
     except SweepError as error:
         raise UsageError(str(error)) from None
 
@@ -293,8 +293,18 @@ def _run(args) -> int:
                               goal=goal, time_limit_s=args.time_limit, radio=RadioKind(args.radio),
                               relay=not args.no_relay, outage_s=args.outage, robots=args.robots, secure=not args.insecure,
                               team_key=key, key_source=key_source)
-    out = _writable_folder(args.out or Path("out") / args.scenario)
+    name = args.scenario
     processes, scenario = None, None
+    if name.endswith((".yaml", ".yml")):  # a mission file (docs/missions.md)
+        from rescuemesh.cli_experiments import mission_scenario
+        from rescuemesh.experiments import SweepError
+
+        try:
+            options, scenario = mission_scenario(args, options)
+        except SweepError as error:
+            raise UsageError(str(error)) from None
+        name = None
+    out = _writable_folder(args.out or Path("out") / (name or scenario.name))
     if args.command == "world":
         from rescuemesh.runtime.spawn import ProcessOptions
 
@@ -311,12 +321,14 @@ def _run(args) -> int:
         print(f"live: Foxglove WebSocket on ws://127.0.0.1:{args.live_port} while the run lasts "
               f"(Foxglove: Open connection, Foxglove WebSocket)", flush=True)
     if args.processes and args.command == "run":
+        if name is None:
+            raise UsageError("a mission file runs in one process; --processes takes a built-in scenario")
         processes, scenario = _early_team(args, options, out)  # before the world's imports: robots start
     from rescuemesh.scenarios.runner import run_scenario
 
     progress = None if args.quiet else _Progress(args.scenario)
     try:
-        outcome = run_scenario(args.scenario, options, map_path=args.map, scenario=scenario, out_dir=out,
+        outcome = run_scenario(name, options, map_path=args.map, scenario=scenario, out_dir=out,
                                progress=progress, processes=processes, realtime=args.realtime,
                                live_port=args.live_port if args.live else None)
     except ControlError as error:

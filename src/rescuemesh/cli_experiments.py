@@ -27,6 +27,8 @@ def add_parsers(sub) -> None:
                        help="keep each run's result.json, plots and run.mcap under DIR/artifacts/KEY")
     sweep.add_argument("--dry-run", action="store_true", help="validate and count the runs; run nothing")
     sweep.add_argument("--quiet", action="store_true", help="no progress line")
+    check = sub.add_parser("check", help="validate a mission or sweep file against its map; run nothing")
+    check.add_argument("file", type=Path, help="a mission file (docs/missions.md) or a sweep file (docs/sweeps.md)")
     report = sub.add_parser("report", help="a sweep's success rates and metric means with 95 %% intervals, and plots")
     report.add_argument("folder", type=Path, help="the sweep's folder (--out of `rescuemesh sweep`)")
     report.add_argument("--plots", type=Path, default=None, help="folder for the plots (default FOLDER/report)")
@@ -110,3 +112,70 @@ class _ProgressLine:
     def clear(self) -> None:
         if self.tty:
             print("\r\x1b[K", end="", file=sys.stderr, flush=True)
+
+
+def _is_sweep(path: Path) -> bool:
+    import yaml
+
+    try:
+        head = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, yaml.YAMLError, RecursionError):
+        return False
+    return isinstance(head, dict) and ("sweep" in head or "axes" in head)
+
+
+def mission_scenario(args, options):
+    """`rescuemesh run FILE.yaml`: the mission's options (its settings; --seed, --key and --time-limit,
+    and --loss, --radio, --no-relay or --insecure given with other than their defaults, override
+    them) and its scenario, built on its map. SweepError for anything the user must fix."""
+    from rescuemesh.experiments import SweepError
+    from rescuemesh.experiments.mission import MissionScenario
+    from rescuemesh.experiments.mission_spec import MissionError, load_mission
+    from rescuemesh.maps import MapError, load_map, office_map_path
+    from rescuemesh.scenarios import ScenarioError
+
+    not_for_missions = [flag for flag, given in (("--map", args.map is not None), ("--robots", args.robots is not None),
+                                                 ("--start", bool(args.start)), ("--goal", args.goal is not None),
+                                                 ("--outage", args.outage is not None)) if given]
+    if not_for_missions:
+        raise SweepError(f"{', '.join(not_for_missions)}: set this in the mission file, not on the command line")
+    try:
+        mission = load_mission(Path(args.scenario))
+        overrides = {"time_limit_s": args.time_limit, "team_key": options.team_key, "key_source": options.key_source}
+        if args.loss != 0.0:
+            overrides["loss"] = args.loss
+        if args.radio != "ble":
+            overrides["radio"] = options.radio
+        if args.no_relay:
+            overrides["relay"] = False
+        if args.insecure:
+            overrides["secure"] = False
+        options = MissionScenario.options_for(mission, args.seed, **overrides)
+        return options, MissionScenario(mission, options, load_map(mission.map_path or office_map_path()))
+    except (MissionError, MapError, ScenarioError) as error:
+        raise SweepError(str(error)) from None
+
+
+def main_check(args) -> int:
+    """Validate a mission file (and its team and steps against its map) or a sweep file."""
+    from rescuemesh.experiments import SweepError, load_sweep
+    from rescuemesh.experiments.mission import MissionScenario
+    from rescuemesh.experiments.mission_spec import MissionError, load_mission
+    from rescuemesh.maps import MapError, load_map, office_map_path
+    from rescuemesh.scenarios import ScenarioError
+
+    path = args.file
+    if _is_sweep(path):
+        sweep = load_sweep(path)
+        print(f"{path}: sweep {sweep.name}: scenario {sweep.scenario}, {sweep.size} runs: OK")
+        return EXIT_OK
+    try:
+        mission = load_mission(path)
+        scenario = MissionScenario(mission, MissionScenario.options_for(mission),
+                                   load_map(mission.map_path or office_map_path()))
+        scenario.starts()
+    except (MissionError, MapError, ScenarioError) as error:
+        raise SweepError(str(error)) from None
+    print(f"{path}: mission {mission.name}: {len(mission.team)} robots, {len(mission.steps)} steps, "
+          f"{len(mission.criteria)} criteria, {len(mission.metrics)} metrics: OK")
+    return EXIT_OK

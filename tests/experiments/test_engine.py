@@ -155,3 +155,21 @@ def test_the_command_refuses_bad_input_with_one_line(tmp_path):
     result = subprocess.run([sys.executable, "-m", "rescuemesh", "report", str(tmp_path)],
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 2 and "not a sweep folder" in result.stderr
+
+
+def test_a_sweep_over_a_mission_file_runs_the_mission(tmp_path):
+    mission = Path(__file__).resolve().parents[2] / "missions" / "forwarded-show-scan.yaml"
+    path = tmp_path / "s.yaml"
+    path.write_text(f"mission: {mission}\naxes:\n  loss: [0.0]\nseeds: 1\n")
+    sweep = load_sweep(path)
+    assert sweep.scenario == "forwarded-show-scan"
+    out = tmp_path / "out"
+    run_sweep(sweep, out, LocalPool(1))
+    (row,) = load_rows(out)
+    assert row["status"] == "success" and row["metrics.scan_result"] == "DONE"
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(f"mission: {mission}\naxes:\n  robots: [3]\nseeds: 1\n")
+    from rescuemesh.experiments import SweepError
+
+    with pytest.raises(SweepError, match="not a mission setting"):
+        load_sweep(bad)

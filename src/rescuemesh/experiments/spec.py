@@ -18,6 +18,8 @@ from typing import Any
 
 import yaml
 
+from rescuemesh.experiments.yamlread import Reader as _Reader, read_yaml
+
 #: Longest sweep file read, in bytes: a grid is a few lines, not a data set.
 MAX_FILE_BYTES = 256 * 1024
 #: Most runs one sweep may hold (axes x seeds): a guard against a typo such as `seeds: 100000`.
@@ -56,6 +58,10 @@ OPTIONS: dict[str, OptionSpec] = {spec.name: spec for spec in (
 )}
 
 
+#: Options a mission sweep may set (the rest is the mission file's).
+MISSION_OPTIONS = ("loss", "relay", "radio", "secure", "time_limit")
+
+
 @dataclass(frozen=True)
 class PlotSpec:
     """One report plot: `y` (a row column) against axis `x`, one line per value of axis `lines`."""
@@ -73,8 +79,9 @@ class RunSpec:
     options: tuple[tuple[str, Any], ...]  # sorted (name, value) pairs, fixed and varied together
     seed: int
     map_path: str | None
-    map_digest: str | None
+    map_digest: str | None  # the map file's content hash (and the mission file's, for a mission sweep)
     key: str
+    mission_path: str | None = None  # a mission file: the run is that mission (scenario is its name)
 
     def option_dict(self) -> dict[str, Any]:
         return dict(self.options)
@@ -93,6 +100,11 @@ class Sweep:
     map_path: Path | None
     metrics: list[str] = field(default_factory=list)
     plots: list[PlotSpec] = field(default_factory=list)
+    mission_path: Path | None = None
+
+    def _digest(self) -> str | None:
+        parts = [_file_digest(p) for p in (self.map_path, self.mission_path) if p is not None]
+        return "+".join(parts) or None
 
     @property
     def size(self) -> int:
@@ -100,19 +112,20 @@ class Sweep:
 
     def runs(self) -> Iterator[RunSpec]:
         """Every combination of the axes' values, each for every seed (seeds innermost)."""
-        digest = _file_digest(self.map_path) if self.map_path is not None else None
+        digest = self._digest()
+        mission = str(self.mission_path) if self.mission_path is not None else None
         names = list(self.axes)
         for values in itertools.product(*(self.axes[n] for n in names)):
             options = dict(self.fixed, **dict(zip(names, values)))
             pairs = tuple(sorted(options.items()))
             for seed in self.seeds:
                 yield RunSpec(self.scenario, pairs, seed, str(self.map_path) if self.map_path else None, digest,
-                              run_key(self.scenario, options, seed, digest))
+                              run_key(self.scenario, options, seed, digest), mission)
 
     def identity(self) -> str:
         """What makes two sweep files the same sweep (its grid, not its plots): a short hash."""
         text = json.dumps({"scenario": self.scenario, "fixed": self.fixed, "axes": self.axes, "seeds": self.seeds,
-                           "map": _file_digest(self.map_path) if self.map_path else None}, sort_keys=True)
+                           "map": self._digest()}, sort_keys=True)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -130,89 +143,45 @@ def _file_digest(path: Path) -> str:
 # --- reading ----------------------------------------------------------------------------------------
 
 _TOP_KEYS = {"sweep": "the sweep's name", "scenario": "a built-in scenario (rescuemesh scenarios)",
+             "mission": "a mission file (relative to the sweep file), instead of a scenario",
              "map": "a map file (relative to the sweep file)", "options": "options held fixed",
              "axes": "options that vary, each with a list of values", "seeds": "a count, a list, or {from, count}",
              "report": "what `rescuemesh report` shows: metrics and plots"}
 
 
-class _Reader:
-    """Walks the YAML node tree so that every error can name its line."""
-
-    def __init__(self, path: Path) -> None:
-        self.path = path
-
-    def fail(self, node, message: str) -> SweepError:
-        line = f":{node.start_mark.line + 1}" if node is not None else ""
-        return SweepError(f"{self.path}{line}: {message}")
-
-    def mapping(self, node, what: str) -> dict[str, tuple[Any, Any]]:
-        """A mapping node as {key: (key node, value node)}; keys must be unique strings."""
-        if not isinstance(node, yaml.MappingNode):
-            raise self.fail(node, f"{what} must be a mapping (key: value lines)")
-        out: dict[str, tuple[Any, Any]] = {}
-        for key_node, value_node in node.value:
-            if not isinstance(key_node, yaml.ScalarNode) or not isinstance(self.scalar(key_node), str):
-                raise self.fail(key_node, f"{what}: keys must be names")
-            key = key_node.value
-            if key in out:
-                raise self.fail(key_node, f"{what}: {key!r} is given twice")
-            out[key] = (key_node, value_node)
-        return out
-
-    def scalar(self, node) -> Any:
-        if not isinstance(node, yaml.ScalarNode):
-            raise self.fail(node, "expected a single value here, not a list or mapping")
-        try:
-            return yaml.constructor.SafeConstructor().construct_object(node, deep=True)
-        except yaml.constructor.ConstructorError as error:
-            raise self.fail(node, f"cannot read this value: {error.problem}") from None
-
-    def sequence(self, node, what: str) -> list:
-        if not isinstance(node, yaml.SequenceNode):
-            raise self.fail(node, f"{what} must be a list ([a, b, ...])")
-        if not node.value:
-            raise self.fail(node, f"{what} is an empty list")
-        return node.value
-
-
 def load_sweep(path: Path) -> Sweep:
     """Read and validate a sweep file; SweepError (one line, with file and line) if anything is off."""
     path = Path(path)
-    try:
-        if not path.is_file():
-            raise SweepError(f"{path}: no such file" if not path.exists() else f"{path}: not a regular file")
-        if path.stat().st_size > MAX_FILE_BYTES:
-            raise SweepError(f"{path}: {path.stat().st_size} bytes; a sweep file is at most {MAX_FILE_BYTES}")
-        text = path.read_text(encoding="utf-8")
-    except OSError as error:
-        raise SweepError(f"{path}: cannot read: {error.strerror or error}") from None
-    except UnicodeDecodeError:
-        raise SweepError(f"{path}: not UTF-8 text") from None
-    try:
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
-    except yaml.MarkedYAMLError as error:
-        mark = error.problem_mark
-        where = f":{mark.line + 1}" if mark is not None else ""
-        raise SweepError(f"{path}{where}: not valid YAML: {error.problem}") from None
-    except (yaml.YAMLError, RecursionError) as error:
-        raise SweepError(f"{path}: not valid YAML: {type(error).__name__}") from None
-    reader = _Reader(path)
-    if root is None:
-        raise SweepError(f"{path}: the file is empty")
+    reader, root = read_yaml(path, SweepError, MAX_FILE_BYTES, "a sweep file")
     top = reader.mapping(root, "a sweep file")
     for key, (key_node, _) in top.items():
         if key not in _TOP_KEYS:
             raise reader.fail(key_node, f"unknown key {key!r}; expected one of: {', '.join(_TOP_KEYS)}")
-    for required in ("scenario", "axes", "seeds"):
+    for required in ("axes", "seeds"):
         if required not in top:
             raise reader.fail(root, f"missing {required!r} ({_TOP_KEYS[required]})")
+    if ("scenario" in top) == ("mission" in top):
+        raise reader.fail(root, "a sweep names either a `scenario` (built in) or a `mission` (a file), not both")
 
     from rescuemesh.scenarios import SCENARIOS  # the registry only; imports no simulator
 
-    scenario_node = top["scenario"][1]
-    scenario = reader.scalar(scenario_node)
-    if scenario not in SCENARIOS:
-        raise reader.fail(scenario_node, f"unknown scenario {scenario!r}; known: {', '.join(SCENARIOS)}")
+    mission_path = None
+    if "mission" in top:
+        from rescuemesh.experiments.mission_spec import MissionError, load_mission
+
+        mission_node = top["mission"][1]
+        mission_path = (path.parent / str(reader.scalar(mission_node))).resolve()
+        try:
+            scenario = load_mission(mission_path).name
+        except MissionError as error:
+            raise reader.fail(mission_node, f"its mission: {error}") from None
+        if "map" in top:
+            raise reader.fail(top["map"][0], "a mission names its own map")
+    else:
+        scenario_node = top["scenario"][1]
+        scenario = reader.scalar(scenario_node)
+        if scenario not in SCENARIOS:
+            raise reader.fail(scenario_node, f"unknown scenario {scenario!r}; known: {', '.join(SCENARIOS)}")
     name = str(reader.scalar(top["sweep"][1])) if "sweep" in top else path.stem
     map_path = None
     if "map" in top:
@@ -240,7 +209,13 @@ def load_sweep(path: Path) -> Sweep:
     if size > MAX_RUNS:
         raise reader.fail(root, f"the grid has {size} runs; a sweep holds at most {MAX_RUNS}")
     metrics, plots = _report(reader, top["report"][1], axes) if "report" in top else ([], [])
-    return Sweep(name, path, scenario, fixed, axes, seeds, map_path, metrics, plots)
+    if mission_path is not None:
+        for key, (key_node, _) in [*reader.mapping(top["axes"][1], "axes").items(),
+                                   *(reader.mapping(top["options"][1], "options").items() if "options" in top else [])]:
+            if key not in MISSION_OPTIONS:
+                raise reader.fail(key_node, f"{key!r} is not a mission setting; a mission sweep may set: "
+                                            f"{', '.join(MISSION_OPTIONS)}")
+    return Sweep(name, path, scenario, fixed, axes, seeds, map_path, metrics, plots, mission_path)
 
 
 def _option_value(reader: _Reader, key: str, key_node, node) -> Any:

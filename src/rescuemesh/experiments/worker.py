@@ -60,6 +60,22 @@ def scenario_options(spec: RunSpec):
     return ScenarioOptions(**kwargs)
 
 
+def mission_run(spec: RunSpec):
+    """(ScenarioOptions, MissionScenario) for a run of a mission sweep: the mission's settings with
+    the sweep's options over them."""
+    from rescuemesh.experiments.mission import MissionScenario
+    from rescuemesh.experiments.mission_spec import load_mission
+    from rescuemesh.maps import load_map, office_map_path
+    from rescuemesh.runtime import RadioKind
+
+    mission = load_mission(Path(spec.mission_path))
+    o = spec.option_dict()
+    overrides = {"loss": o.get("loss"), "relay": o.get("relay"), "secure": o.get("secure"),
+                 "time_limit_s": o.get("time_limit"), "radio": RadioKind(o["radio"]) if "radio" in o else None}
+    options = MissionScenario.options_for(mission, spec.seed, **overrides)
+    return options, MissionScenario(mission, options, load_map(mission.map_path or office_map_path()))
+
+
 def execute(spec: RunSpec, artifacts: str | None = None) -> dict[str, Any]:
     """Run one configuration and seed; the row (never raises for the run's own errors)."""
     started = time.perf_counter()
@@ -67,8 +83,12 @@ def execute(spec: RunSpec, artifacts: str | None = None) -> dict[str, Any]:
         from rescuemesh.scenarios.runner import run_scenario
 
         out_dir = Path(artifacts) / spec.key if artifacts is not None else None
-        outcome = run_scenario(spec.scenario, scenario_options(spec),
-                               map_path=Path(spec.map_path) if spec.map_path else None, out_dir=out_dir)
+        if spec.mission_path is not None:
+            options, scenario = mission_run(spec)
+            outcome = run_scenario(None, options, scenario=scenario, out_dir=out_dir)
+        else:
+            outcome = run_scenario(spec.scenario, scenario_options(spec),
+                                   map_path=Path(spec.map_path) if spec.map_path else None, out_dir=out_dir)
         row = row_from_result(spec, outcome.result)
     except Exception as error:  # a run's failure is a row, never the end of the sweep
         row = failed_row(spec, RunStatus.ERROR, f"{type(error).__name__}: {error}")

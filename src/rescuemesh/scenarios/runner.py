@@ -31,7 +31,7 @@ class RunOutcome:
     files: list[Path]
 
 
-def run_scenario(name: str, options: ScenarioOptions, *, map_path: Path | None = None,
+def run_scenario(name: str | None, options: ScenarioOptions, *, map_path: Path | None = None,
                  out_dir: Path | None = None,
                  progress: Callable[[float, float], None] | None = None,
                  processes: ProcessOptions | None = None, realtime: bool = False,
@@ -40,8 +40,14 @@ def run_scenario(name: str, options: ScenarioOptions, *, map_path: Path | None =
     that cannot be served too). With `out_dir`, the run is recorded to `out_dir/run.mcap`; with
     `live_port`, the same channels are served on ws://127.0.0.1:live_port during the run.
     `scenario`: the scenario already built from `name`, `options` and the map (neither is built
-    again: `run --processes` needs its robots' names before the world is built)."""
-    cls = get_scenario(name)
+    again: `run --processes` needs its robots' names before the world is built); with `name` None,
+    a scenario built from a mission file, run as it is."""
+    if name is None:  # a scenario built elsewhere (a mission file): run as given
+        if scenario is None or scenario.options is not options:
+            raise ValueError("without a scenario name, give the scenario built with these options")
+        cls = type(scenario)
+    else:
+        cls = get_scenario(name)
     if scenario is None:
         scenario = cls(options, load_map(map_path or office_map_path()))
     elif type(scenario) is not cls or scenario.options is not options:

@@ -1,0 +1,293 @@
+"""A mission file, run: its team on its map, its steps started on their triggers, its criteria and
+metrics judged, through the same runner as the built-in scenarios (result.json, plots, run.mcap).
+
+Owns: MissionScenario (a Scenario built from a Mission) and the step engine. Must not know: the
+command line, the simulator's internals (it reads the runtime's brains, trajectories and map).
+Everything it compares is a value (results, positions, reachability), never a log line's text.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
+
+from rescuemesh.body import RobotKind
+from rescuemesh.experiments.mission_spec import (
+    At, CommandSpec, CommandType, Distance, Drive, EndsIn, EndsNear, Mission, MetricBound, NoCollision, OnLink,
+    OnNear, OnRegion, OnStep, Outage, PathLength, RobotModel, SendCommand, Step, StepData, StepResult, TimeTo, Wait)
+from rescuemesh.geometry import Pose2D
+from rescuemesh.protocol import (Follow, ForwardMsg, Goto, LandOnTop, MoveAround, Pose, ResultCode, Return, ShowCam,
+                                 ShowScan, Stop, encode_inner)
+from rescuemesh.robot import robot_address
+from rescuemesh.robot.records import to_wire_pose
+from rescuemesh.runtime import RadioKind
+from rescuemesh.scenarios.base import CommandRequest, Scenario, ScenarioError, ScenarioOptions, Verdict, no_collisions
+
+if TYPE_CHECKING:
+    from rescuemesh.runtime.sim_loop import SimRuntime
+
+#: Results after which a command does no more (a step that sent it has finished).
+FINAL = frozenset({ResultCode.DONE, ResultCode.FAILED, ResultCode.CANCELLED, ResultCode.DENIED,
+                   ResultCode.UNSUPPORTED, ResultCode.TEMPORARILY_REJECTED})
+#: Commands whose ACCEPTED is their outcome (they report no progress and no final result).
+_ACCEPTED_IS_FINAL = frozenset({CommandType.FOLLOW, CommandType.STOP})
+#: A mission has played out this long after its last step finished (reports still on the air land).
+SETTLE_S = 2.0
+
+
+@dataclass
+class StepState:
+    """What became of one step: when its trigger held, when it started and finished, what it saw."""
+
+    step: Step
+    triggered_s: float | None = None
+    started_s: float | None = None
+    finished_s: float | None = None
+    request: CommandRequest | None = None
+    results: dict[ResultCode, float] = field(default_factory=dict)  # each result seen -> first time, in s
+    drive: object | None = None  # the Running a drive started
+    was_heard: bool = False  # a `loses` trigger: its peer was heard at some point
+
+
+class MissionScenario(Scenario):
+    """A Scenario whose team, script and verdict come from a Mission."""
+
+    name = "mission"
+    summary = "a mission file"
+    time_limit_s = 120.0
+
+    def __init__(self, mission: Mission, options: ScenarioOptions, map_model) -> None:
+        self.mission = mission
+        self.name = mission.name
+        self.summary = mission.summary
+        self.time_limit_s = mission.time_limit_s
+        self.robots = tuple(mission.team)
+        self.states = [StepState(step) for step in mission.steps]
+        self._by_name = {s.step.name: s for s in self.states}
+        self._configured = False
+        self._all_done_s: float | None = None
+        super().__init__(options, map_model)
+
+    @classmethod
+    def options_for(cls, mission: Mission, seed: int = 0, **overrides) -> ScenarioOptions:
+        s = mission.settings
+        values = dict(seed=seed, loss=s.loss, relay=s.relay, radio=RadioKind(s.radio), secure=s.secure)
+        values.update({k: v for k, v in overrides.items() if v is not None})
+        return ScenarioOptions(**values)
+
+    def validate(self) -> None:
+        regions = set(self.map.regions)
+        for state in self.states:
+            trigger = state.step.trigger
+            if isinstance(trigger, OnRegion) and trigger.region not in regions:
+                raise ScenarioError(f"{self.mission.path}: step {state.step.name!r} waits for region "
+                                    f"{trigger.region!r}, which map {self.map.name!r} does not have "
+                                    f"(regions: {', '.join(regions) or 'none'})")
+            action = state.step.action
+            if isinstance(action, Drive):
+                self.require_free(f"step {state.step.name!r}'s drive target", Pose2D(*action.pose))
+        for criterion in self.mission.criteria:
+            if isinstance(criterion, EndsIn) and criterion.region not in regions:
+                raise ScenarioError(f"{self.mission.path}: criterion ends_in {criterion.region!r}: map "
+                                    f"{self.map.name!r} has no such region")
+
+    def default_starts(self) -> dict[str, Pose2D]:
+        starts = dict(self.map.starts)
+        for name, robot in self.mission.team.items():
+            if robot.start is not None:
+                starts[name] = Pose2D(*robot.start)
+            elif name not in starts:
+                raise ScenarioError(f"{self.mission.path}: robot {name} has no start, and map {self.map.name!r} "
+                                    f"gives none: set team.{name}.start")
+        return starts
+
+    def sim_config(self):
+        config = super().sim_config()
+        kinds = {name: RobotKind.FLYING for name, r in self.mission.team.items() if r.model is RobotModel.QUADROTOR}
+        ranks = {robot_address(name): r.rank for name, r in self.mission.team.items()}
+        return replace(config, kinds=kinds, brain=replace(config.brain, ranks=ranks))
+
+    # --- the script ---
+
+    def tick(self, rt: SimRuntime) -> None:
+        now = rt.time
+        if not self._configured:  # bases: each brain's own (the runtime gives every robot its start)
+            for name, robot in self.mission.team.items():
+                if robot.base is not None:
+                    brain = rt.brain(name)
+                    brain.config = replace(brain.config, base=Pose2D(*robot.base))
+            self._configured = True
+        for state in self.states:
+            if state.started_s is None:
+                armed = state.step.armed_by is None or self._by_name[state.step.armed_by].finished_s is not None
+                if state.triggered_s is None and armed and self._fires(state, rt):
+                    state.triggered_s = now
+                if state.triggered_s is not None and now >= state.triggered_s + state.step.after_s - 1e-9:
+                    self._start(state, rt)
+            if state.started_s is not None and state.finished_s is None:
+                self._poll(state, rt)
+        if self._all_done_s is None and all(s.finished_s is not None for s in self.states):
+            self._all_done_s = now
+
+    def finished(self, rt: SimRuntime) -> bool:
+        return self._all_done_s is not None and rt.time >= self._all_done_s + SETTLE_S
+
+    def _fires(self, state: StepState, rt: SimRuntime) -> bool:
+        trigger = state.step.trigger
+        if isinstance(trigger, At):
+            return rt.time >= trigger.time_s - 1e-9
+        if isinstance(trigger, OnStep):
+            other = self._by_name[trigger.step]
+            return other.finished_s is not None if trigger.result is None else trigger.result in other.results
+        if isinstance(trigger, OnRegion):
+            pose = rt.trajectories[trigger.robot][-1].pose
+            return self.map.region_of(pose.x, pose.y) == trigger.region
+        if isinstance(trigger, OnNear):
+            return self._distance(rt, trigger.robot, trigger.other, trigger.point) <= trigger.distance
+        if isinstance(trigger, OnLink):
+            heard = rt.brain(trigger.robot).network.is_reachable(robot_address(trigger.peer), rt.time)
+            if not trigger.lost:
+                return heard
+            state.was_heard = state.was_heard or heard  # losing needs having heard it first
+            return state.was_heard and not heard
+        raise TypeError(trigger)
+
+    def _start(self, state: StepState, rt: SimRuntime) -> None:
+        now, action = rt.time, state.step.action
+        state.started_s = now
+        if isinstance(action, SendCommand):
+            brain = rt.brain(action.sender)
+            state.request = CommandRequest(
+                brain, action.receiver, lambda peer, t, b=brain, c=action.command: b.send(peer, _message(c, b), t))
+            state.request.poll(now)
+        elif isinstance(action, Drive):
+            brain = rt.brain(action.robot)
+            brain.navigate_to(Pose2D(*action.pose), now)
+            state.drive = brain.running
+        elif isinstance(action, Outage):
+            rt.set_radio(action.robot, False)
+
+    def _poll(self, state: StepState, rt: SimRuntime) -> None:
+        now, action = rt.time, state.step.action
+        if isinstance(action, SendCommand):
+            state.request.poll(now)
+            sent = state.request.confirmed()
+            if sent is not None and sent.result is not None:
+                state.results.setdefault(sent.result, now)
+                final = sent.result in FINAL or (sent.result == ResultCode.ACCEPTED
+                                                 and action.command.type in _ACCEPTED_IS_FINAL)
+                if final:
+                    state.finished_s = now
+            elif state.request.given_up:
+                state.finished_s = now
+        elif isinstance(action, Drive):
+            if rt.brain(action.robot).running is not state.drive:
+                state.finished_s = now
+        elif isinstance(action, Outage):
+            if now >= state.started_s + action.seconds - 1e-9:
+                rt.set_radio(action.robot, True)
+                state.finished_s = now
+        elif isinstance(action, Wait):
+            if now >= state.started_s + action.seconds - 1e-9:
+                state.finished_s = now
+
+    # --- the verdict ---
+
+    def _distance(self, rt: SimRuntime, robot: str, other: str | None, point) -> float:
+        pose = rt.trajectories[robot][-1].pose
+        if other is not None:
+            there = rt.trajectories[other][-1].pose
+            return pose.distance_to(there)
+        return math.hypot(pose.x - point[0], pose.y - point[1])
+
+    def _metric_values(self, rt: SimRuntime) -> dict[str, float | None]:
+        values: dict[str, float | None] = {}
+        for metric in self.mission.metrics:
+            if isinstance(metric, Distance):
+                values[metric.name] = round(self._distance(rt, metric.robots[0], metric.robots[1], None), 3)
+            elif isinstance(metric, TimeTo):
+                state = self._by_name[metric.step]
+                seen = state.results.get(metric.result)
+                values[metric.name] = None if seen is None or state.started_s is None else \
+                    round(seen - state.started_s, 3)
+            elif isinstance(metric, PathLength):
+                samples = rt.trajectories[metric.robot]
+                values[metric.name] = round(sum(a.pose.distance_to(b.pose) for a, b in zip(samples, samples[1:])), 3)
+        return values
+
+    def evaluate(self, rt: SimRuntime) -> Verdict:
+        metrics = self._metric_values(rt)
+        criteria = []
+        for c in self.mission.criteria:
+            if isinstance(c, NoCollision):
+                criteria.append(no_collisions(rt))
+            elif isinstance(c, StepResult):
+                state = self._by_name[c.step]
+                seen = state.results.get(c.result)
+                ok = seen is not None and (c.within_s is None or seen - state.started_s <= c.within_s)
+                when = "" if seen is None else f" at {seen:.1f} s"
+                within = "" if c.within_s is None else f" within {c.within_s:g} s"
+                criteria.append((f"step {c.step}: {c.result.name}{within}{when}", ok))
+            elif isinstance(c, StepData):
+                count = self._data_count(self._by_name[c.step], rt)
+                criteria.append((f"step {c.step}: at least {c.at_least} data items back ({count})", count >= c.at_least))
+            elif isinstance(c, EndsIn):
+                pose = rt.trajectories[c.robot][-1].pose
+                region = self.map.region_of(pose.x, pose.y)
+                criteria.append((f"{c.robot} ends in {c.region} ({region})", region == c.region))
+            elif isinstance(c, EndsNear):
+                d = self._distance(rt, c.robot, c.other, c.point)
+                of = c.other if c.other is not None else f"({c.point[0]:g}, {c.point[1]:g})"
+                criteria.append((f"{c.robot} ends within {c.distance:g} m of {of} ({d:.2f} m)", d <= c.distance))
+            elif isinstance(c, MetricBound):
+                value = metrics.get(c.metric)
+                ok = value is not None and (c.minimum is None or value >= c.minimum) and \
+                    (c.maximum is None or value <= c.maximum)
+                bounds = " and ".join(x for x in (f">= {c.minimum:g}" if c.minimum is not None else "",
+                                                  f"<= {c.maximum:g}" if c.maximum is not None else "") if x)
+                criteria.append((f"{c.metric} {bounds} ({value})", ok))
+        for state in self.states:
+            name = state.step.name
+            metrics[f"{name}_started_s"] = state.started_s
+            metrics[f"{name}_finished_s"] = state.finished_s
+            if isinstance(state.step.action, SendCommand):
+                last = state.request.confirmed() if state.request is not None else None
+                metrics[f"{name}_result"] = None if last is None or last.result is None else last.result.name
+        return Verdict(all(ok for _, ok in criteria), criteria, metrics)
+
+    def _data_count(self, state: StepState, rt: SimRuntime) -> int:
+        action = state.step.action
+        if state.request is None or not isinstance(action, SendCommand):
+            return 0
+        seqs = set(state.request.seqs)
+        peer = robot_address(action.receiver)
+        return sum(1 for item in rt.brain(action.sender).received_data if item[1] == peer and item[3] in seqs)
+
+
+def _message(command: CommandSpec, brain):
+    """The protocol message for `command`, sent now by `brain` (Follow, MoveAround and LandOnTop carry
+    the sender's own pose)."""
+    here = to_wire_pose(brain.body.pose())
+    kind = command.type
+    if kind is CommandType.FOLLOW:
+        return Follow(here)
+    if kind is CommandType.STOP:
+        return Stop()
+    if kind is CommandType.MOVE_AROUND:
+        return MoveAround(here, command.radius)
+    if kind is CommandType.GOTO:
+        x, y, yaw = command.pose
+        return Goto(Pose(x, y, 0.0, yaw))
+    if kind is CommandType.RETURN:
+        return Return()
+    if kind is CommandType.LAND_ON_TOP:
+        return LandOnTop(here)
+    if kind in (CommandType.SHOW_SCAN, CommandType.SHOW_CAM):
+        cls = ShowScan if kind is CommandType.SHOW_SCAN else ShowCam
+        period = command.period if command.count != 1 else 0.0
+        return cls(Pose(command.spot[0], command.spot[1], 0.0, 0.0), period, command.count)
+    if kind is CommandType.FORWARD_MSG:
+        return ForwardMsg(robot_address(command.target), encode_inner(_message(command.inner, brain)))
+    raise ValueError(kind)
+

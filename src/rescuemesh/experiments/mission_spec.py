@@ -1,0 +1,501 @@
+"""A mission file: a team on a map, settings, a script of steps (actions started at a time or on an
+event) and success criteria and metrics from a documented vocabulary (docs/missions.md).
+
+Owns: the mission's typed form and reading it from YAML, every error naming the file and the line.
+Must not know: how a mission runs (experiments/mission.py) or the simulator.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from rescuemesh.experiments.yamlread import Reader, read_yaml
+from rescuemesh.protocol import ResultCode
+from rescuemesh.robot.policy import Rank
+
+MAX_FILE_BYTES = 256 * 1024
+
+
+class MissionError(ValueError):
+    """A mission file that cannot run; one line naming the file and the line."""
+
+
+class CommandType(enum.Enum):
+    """The nine commands of the paper's Table III, by their mission-file names."""
+
+    FOLLOW = "follow"
+    STOP = "stop"
+    MOVE_AROUND = "move_around"
+    GOTO = "goto"
+    RETURN = "return"
+    SHOW_CAM = "show_cam"
+    SHOW_SCAN = "show_scan"
+    LAND_ON_TOP = "land_on_top"
+    FORWARD_MSG = "forward_msg"
+
+
+class RobotModel(enum.Enum):
+    TURTLEBOT2 = "turtlebot2"
+    QUADROTOR = "quadrotor"
+
+
+@dataclass(frozen=True)
+class CommandSpec:
+    """A command and its parameters (which apply depends on `type`; docs/missions.md)."""
+
+    type: CommandType
+    pose: tuple[float, float, float] | None = None  # goto
+    radius: float | None = None  # move_around
+    spot: tuple[float, float] | None = None  # show_scan, show_cam
+    count: int = 1  # show_scan, show_cam
+    period: float = 1.0  # show_scan, show_cam, in s
+    target: str | None = None  # forward_msg
+    inner: CommandSpec | None = None  # forward_msg
+
+
+# --- actions ---
+
+@dataclass(frozen=True)
+class SendCommand:
+    sender: str
+    receiver: str
+    command: CommandSpec
+
+
+@dataclass(frozen=True)
+class Drive:
+    robot: str
+    pose: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class Outage:
+    robot: str
+    seconds: float
+
+
+@dataclass(frozen=True)
+class Wait:
+    seconds: float
+
+
+Action = SendCommand | Drive | Outage | Wait
+
+
+# --- triggers ---
+
+@dataclass(frozen=True)
+class At:
+    time_s: float
+
+
+@dataclass(frozen=True)
+class OnStep:
+    step: str
+    result: ResultCode | None  # None: when the step has finished
+
+
+@dataclass(frozen=True)
+class OnRegion:
+    robot: str
+    region: str
+
+
+@dataclass(frozen=True)
+class OnNear:
+    robot: str
+    distance: float
+    other: str | None
+    point: tuple[float, float] | None
+
+
+@dataclass(frozen=True)
+class OnLink:
+    robot: str
+    peer: str
+    lost: bool  # True: `robot` stops hearing `peer`; False: hears it (again)
+
+
+Trigger = At | OnStep | OnRegion | OnNear | OnLink
+
+
+@dataclass(frozen=True)
+class Step:
+    name: str
+    trigger: Trigger
+    after_s: float
+    action: Action
+    armed_by: str | None = None  # the trigger is checked only once this step has finished
+
+
+# --- criteria and metrics ---
+
+@dataclass(frozen=True)
+class StepResult:
+    step: str
+    result: ResultCode
+    within_s: float | None
+
+
+@dataclass(frozen=True)
+class StepData:
+    step: str
+    at_least: int
+
+
+@dataclass(frozen=True)
+class EndsIn:
+    robot: str
+    region: str
+
+
+@dataclass(frozen=True)
+class EndsNear:
+    robot: str
+    distance: float
+    other: str | None
+    point: tuple[float, float] | None
+
+
+@dataclass(frozen=True)
+class NoCollision:
+    pass
+
+
+@dataclass(frozen=True)
+class MetricBound:
+    metric: str
+    minimum: float | None
+    maximum: float | None
+
+
+Criterion = StepResult | StepData | EndsIn | EndsNear | NoCollision | MetricBound
+
+
+@dataclass(frozen=True)
+class Distance:
+    name: str
+    robots: tuple[str, str]
+
+
+@dataclass(frozen=True)
+class TimeTo:
+    name: str
+    step: str
+    result: ResultCode
+
+
+@dataclass(frozen=True)
+class PathLength:
+    name: str
+    robot: str
+
+
+Metric = Distance | TimeTo | PathLength
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    name: str
+    model: RobotModel = RobotModel.TURTLEBOT2
+    start: tuple[float, float, float] | None = None  # None: the map's start for this name
+    base: tuple[float, float, float] | None = None  # None: its start
+    rank: Rank = Rank.PEER
+
+
+@dataclass(frozen=True)
+class Settings:
+    loss: float = 0.0
+    relay: bool = True
+    radio: str = "ble"
+    secure: bool = True
+
+
+@dataclass(frozen=True)
+class Mission:
+    name: str
+    path: Path
+    summary: str
+    map_path: Path | None  # None: the packaged office
+    time_limit_s: float
+    settings: Settings
+    team: dict[str, RobotSpec]
+    steps: tuple[Step, ...]
+    criteria: tuple[Criterion, ...]
+    metrics: tuple[Metric, ...] = field(default_factory=tuple)
+
+
+# --- reading ------------------------------------------------------------------------------------------
+
+_TOP = {"mission": "its name", "summary": "one line on what it shows", "map": "office, or a map file",
+        "time_limit": "simulated seconds", "settings": "loss, relay, radio, secure", "team": "the robots",
+        "steps": "the script", "criteria": "what success means", "metrics": "figures to report"}
+_RESULTS = {r.name.lower(): r for r in ResultCode}
+
+
+def load_mission(path: Path) -> Mission:
+    """Read and validate a mission file; MissionError (one line, file and line) if anything is off."""
+    path = Path(path)
+    r, root = read_yaml(path, MissionError, MAX_FILE_BYTES, "a mission file")
+    top = r.keys(root, "a mission file", _TOP, required=("team", "steps", "criteria"))
+    name = r.text(top["mission"], "mission") if "mission" in top else path.stem
+    summary = str(r.scalar(top["summary"])) if "summary" in top else ""
+    map_path = None
+    if "map" in top and r.text(top["map"], "map") != "office":
+        map_path = (path.parent / r.text(top["map"], "map")).resolve()
+        if not map_path.is_file():
+            raise r.fail(top["map"], f"map file {str(map_path)!r} does not exist")
+    limit = r.number(top["time_limit"], "time_limit", above=0.0) if "time_limit" in top else 120.0
+    settings = _settings(r, top["settings"]) if "settings" in top else Settings()
+    team = _team(r, top["team"])
+    names = set(team)
+    steps = _steps(r, top["steps"], names)
+    step_names = {s.name for s in steps}
+    for step in steps:
+        for other in (step.trigger.step if isinstance(step.trigger, OnStep) else None, step.armed_by):
+            if other is not None and other not in step_names:
+                raise r.fail(top["steps"], f"step {step.name!r} waits for step {other!r}, which does not exist")
+    metrics = tuple(_metric(r, item, names, step_names) for item in r.sequence(top["metrics"], "metrics")) \
+        if "metrics" in top else ()
+    metric_names = [m.name for m in metrics]
+    if len(set(metric_names)) != len(metric_names):
+        raise r.fail(top["metrics"], "metrics: a name is used twice")
+    criteria = tuple(_criterion(r, item, names, step_names, set(metric_names))
+                     for item in r.sequence(top["criteria"], "criteria"))
+    return Mission(name, path, summary, map_path, limit, settings, team, steps, criteria, metrics)
+
+
+def _settings(r: Reader, node) -> Settings:
+    f = r.keys(node, "settings", {"loss": "in [0, 1)", "relay": "true or false", "radio": "ble or disc",
+                                  "secure": "true or false"})
+    loss = r.number(f["loss"], "settings.loss", minimum=0.0) if "loss" in f else 0.0
+    if loss >= 1.0:
+        raise r.fail(f["loss"], f"settings.loss must be below 1, got {loss!r}")
+    return Settings(loss, r.flag(f["relay"], "settings.relay") if "relay" in f else True,
+                    r.text(f["radio"], "settings.radio", ("ble", "disc")) if "radio" in f else "ble",
+                    r.flag(f["secure"], "settings.secure") if "secure" in f else True)
+
+
+def _team(r: Reader, node) -> dict[str, RobotSpec]:
+    from rescuemesh.robot import robot_address
+
+    team = {}
+    for name, (key_node, value_node) in r.mapping(node, "team").items():
+        try:
+            robot_address(name)
+        except ValueError as error:
+            raise r.fail(key_node, str(error)) from None
+        f = r.keys(value_node, f"team.{name}", {"model": "turtlebot2 or quadrotor", "start": "[X, Y, YAW]",
+                                                  "base": "[X, Y, YAW]", "rank": "peer, team_lead or operator"}) \
+            if value_node.tag != "tag:yaml.org,2002:null" else {}
+        team[name] = RobotSpec(
+            name,
+            RobotModel(r.text(f["model"], f"team.{name}.model", tuple(m.value for m in RobotModel)))
+            if "model" in f else RobotModel.TURTLEBOT2,
+            r.point(f["start"], f"team.{name}.start", yaw=True) if "start" in f else None,
+            r.point(f["base"], f"team.{name}.base", yaw=True) if "base" in f else None,
+            Rank[r.text(f["rank"], f"team.{name}.rank", ("peer", "team_lead", "operator")).upper()]
+            if "rank" in f else Rank.PEER)
+    if len(team) < 2:
+        raise r.fail(node, "team: a mission needs at least two robots")
+    return team
+
+
+def _robot(r: Reader, node, what: str, names: set[str]) -> str:
+    name = r.text(node, what)
+    if name not in names:
+        raise r.fail(node, f"{what}: unknown robot {name!r}; the team is {', '.join(sorted(names))}")
+    return name
+
+
+def _result(r: Reader, node, what: str) -> ResultCode:
+    text = r.text(node, what).lower()
+    if text not in _RESULTS:
+        raise r.fail(node, f"{what} must be one of {', '.join(_RESULTS)}, got {text!r}")
+    return _RESULTS[text]
+
+
+_COMMAND_KEYS = {"type": "a command", "pose": "goto: [X, Y, YAW]", "radius": "move_around: m",
+                 "spot": "show_scan/show_cam: [X, Y]", "count": "show_scan/show_cam: how many",
+                 "period": "show_scan/show_cam: s between them", "target": "forward_msg: the robot it goes to",
+                 "command": "forward_msg: the command to forward"}
+_NEEDS = {CommandType.GOTO: ("pose",), CommandType.MOVE_AROUND: ("radius",), CommandType.SHOW_SCAN: ("spot",),
+          CommandType.SHOW_CAM: ("spot",), CommandType.FORWARD_MSG: ("target", "command")}
+
+
+def _command(r: Reader, node, what: str, names: set[str], *, nested: bool = False) -> CommandSpec:
+    f = r.keys(node, what, _COMMAND_KEYS, required=("type",))
+    kind = CommandType(r.text(f["type"], f"{what}.type", tuple(c.value for c in CommandType)))
+    if nested and kind is CommandType.FORWARD_MSG:
+        raise r.fail(f["type"], f"{what}: a forward_msg cannot forward another forward_msg")
+    needs = _NEEDS.get(kind, ())
+    for key in needs:
+        if key not in f:
+            raise r.fail(node, f"{what}: {kind.value} needs {key!r} ({_COMMAND_KEYS[key]})")
+    for key in f:
+        if key != "type" and key not in needs and not (key in ("count", "period") and "spot" in needs):
+            raise r.fail(f[key], f"{what}: {key!r} does not apply to {kind.value}")
+    return CommandSpec(
+        kind,
+        pose=r.point(f["pose"], f"{what}.pose", yaw=True) if "pose" in f else None,
+        radius=r.number(f["radius"], f"{what}.radius", above=0.0) if "radius" in f else None,
+        spot=r.point(f["spot"], f"{what}.spot") if "spot" in f else None,
+        count=r.whole(f["count"], f"{what}.count", minimum=1, maximum=255) if "count" in f else 1,
+        period=r.number(f["period"], f"{what}.period", above=0.0) if "period" in f else 1.0,
+        target=_robot(r, f["target"], f"{what}.target", names) if "target" in f else None,
+        inner=_command(r, f["command"], f"{what}.command", names, nested=True) if "command" in f else None)
+
+
+_STEP_KEYS = {"name": "a name other steps and criteria use", "at": "simulated time in s",
+              "on": "an event (docs/missions.md)", "after": "s to wait after the event",
+              "after_step": "a step that must have finished before the trigger is checked",
+              "command": "{from, to, type, ...}", "drive": "{robot, to: [X, Y, YAW]}",
+              "outage": "{robot, seconds}", "wait": "s"}
+_ACTIONS = ("command", "drive", "outage", "wait")
+
+
+def _steps(r: Reader, node, names: set[str]) -> tuple[Step, ...]:
+    steps: list[Step] = []
+    for i, item in enumerate(r.sequence(node, "steps")):
+        f = r.keys(item, f"step {i + 1}", _STEP_KEYS)
+        name = r.text(f["name"], f"step {i + 1}.name") if "name" in f else f"step_{i + 1}"
+        if any(s.name == name for s in steps):
+            raise r.fail(item, f"step name {name!r} is used twice")
+        what = f"step {name!r}"
+        actions = [a for a in _ACTIONS if a in f]
+        if len(actions) != 1:
+            raise r.fail(item, f"{what} needs exactly one action of: {', '.join(_ACTIONS)}")
+        if ("at" in f) == ("on" in f):
+            raise r.fail(item, f"{what} needs exactly one of `at` (a time) or `on` (an event)")
+        trigger = At(r.number(f["at"], f"{what}.at", minimum=0.0)) if "at" in f else _trigger(r, f["on"], what, names)
+        after = r.number(f["after"], f"{what}.after", minimum=0.0) if "after" in f else 0.0
+        armed_by = r.text(f["after_step"], f"{what}.after_step") if "after_step" in f else None
+        steps.append(Step(name, trigger, after, _action(r, actions[0], f[actions[0]], what, names), armed_by))
+    return tuple(steps)
+
+
+def _action(r: Reader, kind: str, node, what: str, names: set[str]) -> Action:
+    if kind == "wait":
+        return Wait(r.number(node, f"{what}.wait", above=0.0))
+    if kind == "command":
+        f = r.keys(node, f"{what}.command", dict(_COMMAND_KEYS, **{"from": "the sender", "to": "the receiver"}),
+                   required=("from", "to", "type"))
+        sender, receiver = _robot(r, f.pop("from"), f"{what}.from", names), _robot(r, f.pop("to"), f"{what}.to", names)
+        if sender == receiver:
+            raise r.fail(node, f"{what}: a robot does not command itself")
+        # the rest is the command: re-read it from the node without from/to
+        command = _command_from_fields(r, node, f, f"{what}.command", names)
+        return SendCommand(sender, receiver, command)
+    if kind == "drive":
+        f = r.keys(node, f"{what}.drive", {"robot": "who drives", "to": "[X, Y, YAW]"}, required=("robot", "to"))
+        return Drive(_robot(r, f["robot"], f"{what}.drive.robot", names), r.point(f["to"], f"{what}.drive.to", yaw=True))
+    f = r.keys(node, f"{what}.outage", {"robot": "whose radio", "seconds": "how long"}, required=("robot", "seconds"))
+    return Outage(_robot(r, f["robot"], f"{what}.outage.robot", names),
+                  r.number(f["seconds"], f"{what}.outage.seconds", above=0.0))
+
+
+def _command_from_fields(r: Reader, node, fields: dict, what: str, names: set[str]) -> CommandSpec:
+    import yaml
+
+    kept = [(k, v) for k, v in node.value if k.value in fields]
+    return _command(r, yaml.MappingNode(node.tag, kept, node.start_mark, node.end_mark), what, names)
+
+
+_TRIGGER_KEYS = {"step": "a step's name", "result": "a result (accepted, in_progress, done, failed, ...)",
+                 "robot": "a robot", "enters": "a region of the map", "within": "m", "of": "a robot or [X, Y]",
+                 "loses": "a robot it stops hearing", "hears": "a robot it hears (again)"}
+
+
+def _near(r: Reader, f: dict, what: str, names: set[str]):
+    of = f["of"]
+    if isinstance(of, __import__("yaml").SequenceNode):
+        return None, r.point(of, f"{what}.of")
+    return _robot(r, of, f"{what}.of", names), None
+
+
+def _trigger(r: Reader, node, what: str, names: set[str]) -> Trigger:
+    f = r.keys(node, f"{what}.on", _TRIGGER_KEYS)
+    if "step" in f:
+        if set(f) - {"step", "result"}:
+            raise r.fail(node, f"{what}.on: a step event takes `step` and optionally `result`")
+        return OnStep(r.text(f["step"], f"{what}.on.step"),
+                      _result(r, f["result"], f"{what}.on.result") if "result" in f else None)
+    if "robot" not in f:
+        raise r.fail(node, f"{what}.on needs `step` or `robot`")
+    robot = _robot(r, f["robot"], f"{what}.on.robot", names)
+    forms = [k for k in ("enters", "within", "loses", "hears") if k in f]
+    if len(forms) != 1:
+        raise r.fail(node, f"{what}.on: a robot event takes one of enters, within (with of), loses, hears")
+    if forms[0] == "enters":
+        return OnRegion(robot, r.text(f["enters"], f"{what}.on.enters"))
+    if forms[0] == "within":
+        if "of" not in f:
+            raise r.fail(node, f"{what}.on: within needs `of` (a robot or [X, Y])")
+        other, point = _near(r, f, f"{what}.on", names)
+        return OnNear(robot, r.number(f["within"], f"{what}.on.within", above=0.0), other, point)
+    peer = _robot(r, f[forms[0]], f"{what}.on.{forms[0]}", names)
+    return OnLink(robot, peer, lost=forms[0] == "loses")
+
+
+_CRITERION_KEYS = {"step": "a command step", "result": "its result", "within": "s, or m with `of`",
+                   "data": "how many data items it must bring back", "robot": "a robot",
+                   "ends_in": "a region", "of": "a robot or [X, Y]", "no_collision": "true",
+                   "metric": "a metric's name", "min": "lowest allowed", "max": "highest allowed"}
+
+
+def _criterion(r: Reader, node, names: set[str], steps: set[str], metrics: set[str]) -> Criterion:
+    f = r.keys(node, "a criterion", _CRITERION_KEYS)
+    if "no_collision" in f:
+        if set(f) != {"no_collision"} or not r.flag(f["no_collision"], "no_collision"):
+            raise r.fail(node, "no_collision stands alone, as `no_collision: true`")
+        return NoCollision()
+    if "metric" in f:
+        metric = r.text(f["metric"], "metric")
+        if metric not in metrics:
+            raise r.fail(f["metric"], f"unknown metric {metric!r}; the mission's metrics: {', '.join(sorted(metrics))}")
+        if set(f) - {"metric", "min", "max"} or not ({"min", "max"} & set(f)):
+            raise r.fail(node, "a metric criterion takes `min`, `max` or both")
+        return MetricBound(metric, r.number(f["min"], "min") if "min" in f else None,
+                           r.number(f["max"], "max") if "max" in f else None)
+    if "step" in f:
+        step = r.text(f["step"], "step")
+        if step not in steps:
+            raise r.fail(f["step"], f"unknown step {step!r}")
+        if "data" in f:
+            return StepData(step, r.whole(f["data"], "data", minimum=1))
+        if "result" not in f:
+            raise r.fail(node, "a step criterion takes `result` (and optionally `within` s) or `data`")
+        return StepResult(step, _result(r, f["result"], "result"),
+                          r.number(f["within"], "within", above=0.0) if "within" in f else None)
+    if "robot" in f:
+        robot = _robot(r, f["robot"], "robot", names)
+        if "ends_in" in f:
+            return EndsIn(robot, r.text(f["ends_in"], "ends_in"))
+        if "within" in f and "of" in f:
+            other, point = _near(r, f, "criterion", names)
+            return EndsNear(robot, r.number(f["within"], "within", above=0.0), other, point)
+        raise r.fail(node, "a robot criterion takes `ends_in` or `within` with `of`")
+    raise r.fail(node, "a criterion names a step, a robot, a metric or no_collision")
+
+
+def _metric(r: Reader, node, names: set[str], steps: set[str]) -> Metric:
+    f = r.keys(node, "a metric", {"name": "its name in result.json", "distance": "[ROBOT, ROBOT] at the end",
+                                  "time_to": "{step, result}: s from the step's start",
+                                  "path_length": "a robot: m driven"}, required=("name",))
+    name = r.text(f["name"], "metric name")
+    if "distance" in f:
+        items = r.sequence(f["distance"], "distance")
+        if len(items) != 2:
+            raise r.fail(f["distance"], "distance takes two robots")
+        return Distance(name, (_robot(r, items[0], "distance", names), _robot(r, items[1], "distance", names)))
+    if "time_to" in f:
+        g = r.keys(f["time_to"], "time_to", {"step": "a step", "result": "a result"}, required=("step", "result"))
+        step = r.text(g["step"], "time_to.step")
+        if step not in steps:
+            raise r.fail(g["step"], f"unknown step {step!r}")
+        return TimeTo(name, step, _result(r, g["result"], "time_to.result"))
+    if "path_length" in f:
+        return PathLength(name, _robot(r, f["path_length"], "path_length", names))
+    raise r.fail(node, "a metric is one of distance, time_to, path_length")
