@@ -159,3 +159,18 @@ def test_the_run_command_takes_a_mission_and_refuses_flags_that_belong_in_it(tmp
     result = subprocess.run([sys.executable, "-m", "rescuemesh", "check", str(bad)], capture_output=True, text=True,
                             timeout=120)
     assert result.returncode == 2 and f"{bad}:9:" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_the_python_api_runs_a_mission_and_a_scenario():
+    import rescuemesh
+    from rescuemesh import Mission, run
+
+    mission = Mission.load(next(p for p in MISSIONS if p.stem == "forwarded-show-scan"))
+    result = run(mission, seed=1, loss=0.1)
+    assert result.success and result.result["seed"] == 1 and result.result["settings"]["loss"] == 0.1
+    assert result.metrics["scan_result"] == "DONE" and all(result.criteria.values())
+    stop = run("stop", seed=0, time_limit_s=3.0)
+    assert stop.result["scenario"] == "stop" and stop.result["sim_time_s"] == pytest.approx(3.0, abs=0.1)
+    assert set(rescuemesh.__all__) == {"Mission", "run", "sweep"}
+    with pytest.raises(ValueError, match="not robots"):
+        run(mission, robots=4)

@@ -148,3 +148,17 @@ def test_a_forwarded_command_that_fails_or_is_refused_ends_failed_with_a_reason(
     sent = team.brains["robot_1"].outgoing[seq]
     assert (sent.result, sent.reason) == (ResultCode.FAILED, reason)
     assert not team.brains["robot_2"].forwarder.jobs
+
+
+def test_a_forward_msg_asked_again_under_a_new_seq_is_the_same_job():
+    # this used to open a second job: the target got the inner command twice, the second replaced
+    # the first, and the sender heard CANCELLED for the copy it was watching (seen at 10 % loss)
+    from rescuemesh.robot.forwarding import Forwarder
+
+    forwarder = Forwarder(2)
+    inner = encode_inner(ShowScan(Pose(10.0, 9.0, 0, 0), 0.5, 2))
+    first = forwarder.accept(ONE, 5, THREE, inner, 0.0)
+    again = forwarder.accept(ONE, 6, THREE, inner, 0.6)
+    assert again is first and len(forwarder.jobs) == 1 and first.seq == 6
+    other = forwarder.accept(ONE, 7, THREE, encode_inner(Goto(Pose(1.0, 1.0, 0.0, 0.0))), 0.7)
+    assert other is not first and len(forwarder.jobs) == 2

@@ -34,6 +34,8 @@ FINAL = frozenset({ResultCode.DONE, ResultCode.FAILED, ResultCode.CANCELLED, Res
 _ACCEPTED_IS_FINAL = frozenset({CommandType.FOLLOW, CommandType.STOP})
 #: A mission has played out this long after its last step finished (reports still on the air land).
 SETTLE_S = 2.0
+#: How long a ShowScan/ShowCam step waits, after DONE, for data still on the way, in s.
+DATA_GRACE_S = 5.0
 
 
 @dataclass
@@ -172,11 +174,16 @@ class MissionScenario(Scenario):
         now, action = rt.time, state.step.action
         if isinstance(action, SendCommand):
             state.request.poll(now)
-            sent = state.request.confirmed()
+            sent = _latest_answered(state.request)
             if sent is not None and sent.result is not None:
                 state.results.setdefault(sent.result, now)
                 final = sent.result in FINAL or (sent.result == ResultCode.ACCEPTED
                                                  and action.command.type in _ACCEPTED_IS_FINAL)
+                if final and sent.seq != state.request.seqs[-1] and not state.request.brain.outgoing[
+                        state.request.seqs[-1]].failed:
+                    final = False  # an older copy ended (replaced by our newer one, say): the newer one decides
+                if final and self._awaits_data(state, rt, now):
+                    final = False
                 if final:
                     state.finished_s = now
             elif state.request.given_up:
@@ -191,6 +198,18 @@ class MissionScenario(Scenario):
         elif isinstance(action, Wait):
             if now >= state.started_s + action.seconds - 1e-9:
                 state.finished_s = now
+
+    def _awaits_data(self, state: StepState, rt: SimRuntime, now: float) -> bool:
+        """A ShowScan or ShowCam (forwarded or not) that ended DONE still has data on the way: a scan
+        is segmented and slower than the DONE that follows it. Wait for `count` items, at most
+        DATA_GRACE_S after DONE."""
+        command = state.step.action.command
+        if command.type is CommandType.FORWARD_MSG:
+            command = command.inner
+        if command.type not in (CommandType.SHOW_SCAN, CommandType.SHOW_CAM) or \
+                ResultCode.DONE not in state.results:
+            return False
+        return self._data_count(state, rt) < command.count and now < state.results[ResultCode.DONE] + DATA_GRACE_S
 
     # --- the verdict ---
 
@@ -252,7 +271,7 @@ class MissionScenario(Scenario):
             metrics[f"{name}_started_s"] = state.started_s
             metrics[f"{name}_finished_s"] = state.finished_s
             if isinstance(state.step.action, SendCommand):
-                last = state.request.confirmed() if state.request is not None else None
+                last = _latest_answered(state.request) if state.request is not None else None
                 metrics[f"{name}_result"] = None if last is None or last.result is None else last.result.name
         return Verdict(all(ok for _, ok in criteria), criteria, metrics)
 
@@ -263,6 +282,14 @@ class MissionScenario(Scenario):
         seqs = set(state.request.seqs)
         peer = robot_address(action.receiver)
         return sum(1 for item in rt.brain(action.sender).received_data if item[1] == peer and item[3] in seqs)
+
+
+def _latest_answered(request: CommandRequest):
+    """The newest copy of a mission's command that was answered (the mission may have sent it again
+    after the protocol gave a copy up; a later copy's outcome is the one that counts), or None."""
+    outgoing = request.brain.outgoing
+    return next((outgoing[s] for s in reversed(request.seqs)
+                 if outgoing[s].result is not None and not outgoing[s].failed), None)
 
 
 def _message(command: CommandSpec, brain):

@@ -226,6 +226,11 @@ class Mission:
     criteria: tuple[Criterion, ...]
     metrics: tuple[Metric, ...] = field(default_factory=tuple)
 
+    @staticmethod
+    def load(path: str | Path) -> "Mission":
+        """Read and validate a mission file (load_mission)."""
+        return load_mission(Path(path))
+
 
 # --- reading ------------------------------------------------------------------------------------------
 

@@ -33,6 +33,11 @@ The brain asks it what to send and tells it what the target answered.
 # when it gave none). Data the target sends in answer to the inner command (a ShowScan's scans) is forwarded
 # to S as Data answering S's ForwardMsg (ref_seq = the ForwardMsg's seq).
 #
+# A ForwardMsg equal to an open job's (same sender, target and inner message) under a new seq is
+# that job asked again (its sender gave the first copy up unconfirmed and retried): it is answered
+# ACCEPTED, and the job's reports go to the new seq. Otherwise the target would get the inner
+# command twice, and the second would replace the first.
+#
 # The inner message leaves from the forwarder's own address (it is the one that will get the
 # Confirm); a long one (over 9 bytes, or a Data) is segmented by the mesh layer like any frame.
 
@@ -120,6 +125,10 @@ class Forwarder:
             return Reason.BAD_REQUEST
         if not (is_command(inner) or isinstance(inner, Data)):
             return Reason.BAD_REQUEST
+        same = next((j for j in self.jobs if (j.sender, j.target, j.inner) == (sender, target, inner)), None)
+        if same is not None:  # the sender asked again (it gave its first copy up): the same job, reported to the new seq
+            same.seq = seq
+            return same
         if len(self.jobs) >= self.capacity:
             return Reason.BUSY
         job = ForwardJob(sender, seq, target, inner, now, now + self.timeout_s)
