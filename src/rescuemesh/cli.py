@@ -493,9 +493,14 @@ def _summary(outcome) -> None:
     if skipped:
         print(f"  waypoints skipped (inside obstacles): {', '.join(skipped)}")
     ratio = "n/a" if p["delivery_ratio"] is None else f"{100 * p['delivery_ratio']:.0f} %"
+    stops = p["automatic_stops"]
+    automatic = (f"; automatic Stops {stops['sent']} ({stops['confirmed']} confirmed, {stops['failed']} failed, "
+                 f"{stops['pending']} pending)") if stops["sent"] else ""
     print(f"  protocol: {p['unicast_frames_sent']} unicast + {p['broadcast_frames_sent']} broadcast frames sent "
-          f"({p['bytes_sent']} B), {p['retries']} retries, {p['confirms']} confirms; commands "
-          f"{p['commands_confirmed']}/{p['commands_sent']} confirmed ({ratio}), {p['commands_failed']} failed")
+          f"({p['bytes_sent']} B), {p['retries']} retries, {p['confirms']} confirms; unicast sends delivered "
+          f"end to end {p['unicast_sends_delivered']}/{p['unicast_sends']} ({ratio}); commands "
+          f"{p['commands_confirmed']}/{p['commands_sent']} confirmed, {p['commands_failed']} failed, "
+          f"{p['commands_pending']} pending{automatic}")
     hops = ", ".join(f"{k} hop{'s' if k != '1' else ''}: {v}" for k, v in n["hops_histogram"].items())
     print(f"  network: {n['transmissions']} transmissions ({n['relayed_frames']} relayed, "
           f"{n['segment_transmissions']} segments, largest {p['max_frame_bytes']} B), airtime {n['airtime_s']:.2f} s, "

@@ -260,11 +260,25 @@ def no_collisions(rt: SimRuntime) -> tuple[str, bool]:
 
 
 def mean_distance(a: list[TrajectorySample], b: list[TrajectorySample], t0: float, t1: float) -> float:
-    """Mean distance in m between two robots' recorded positions over [t0, t1] s."""
+    """Mean centre-to-centre distance in m between two robots' recorded positions (one sample per
+    control step) over [t0, t1] s."""
     pairs = [(p.pose, q.pose) for p, q in zip(a, b) if t0 <= p.time_s <= t1]
     if not pairs:
         return math.nan
     return sum(p.distance_to(q) for p, q in pairs) / len(pairs)
+
+
+def following_error(a: list[TrajectorySample], b: list[TrajectorySample], t0: float, t1: float,
+                    set_distance_m: float) -> dict | None:
+    """How far follower `b` kept from leader `a` against the set following distance, over the
+    samples in [t0, t1] s: centre-to-centre distance minus `set_distance_m`, as its mean (signed:
+    positive is lagging), RMS and largest value, in m; None with no sample in the window."""
+    errors = [p.pose.distance_to(q.pose) - set_distance_m for p, q in zip(a, b) if t0 <= p.time_s <= t1]
+    if not errors:
+        return None
+    return {"set_distance_m": set_distance_m, "mean_m": round(sum(errors) / len(errors), 3),
+            "rms_m": round(math.sqrt(sum(e * e for e in errors) / len(errors)), 3),
+            "max_m": round(max(errors), 3), "samples": len(errors)}
 
 
 def _last_finished(brain, behaviour: str):

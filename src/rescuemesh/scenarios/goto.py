@@ -21,6 +21,15 @@ OFFICE_GOTO = Pose2D(12.6, 2.4, math.pi / 2)
 XY_TOLERANCE_M, YAW_TOLERANCE_RAD = 0.15, 0.3
 
 
+def _pose_at(samples, time_s: float | None) -> Pose2D:
+    """The pose of the first trajectory sample at or after `time_s` (the last one for None or later)."""
+    if time_s is not None:
+        for sample in samples:
+            if sample.time_s >= time_s:
+                return sample.pose
+    return samples[-1].pose
+
+
 def _angle(a: float, b: float) -> float:
     return abs(math.remainder(a - b, 2 * math.pi))
 
@@ -73,7 +82,8 @@ class GotoScenario(Scenario):
 
     def evaluate(self, rt: SimRuntime) -> Verdict:
         goal = self.goal()
-        end = rt.trajectories[self.mover][-1].pose
+        # the Goto's own error: where the mover was when DONE arrived (the run's end without one)
+        end = _pose_at(rt.trajectories[self.mover], self.goto_done_s)
         error_m, error_rad = end.distance_to(goal), _angle(end.yaw, goal.yaw)
         sent = self._outcome(rt, self._goto)
         reports = self._progress_reports(rt)
@@ -137,6 +147,11 @@ class ReturnScenario(GotoScenario):
                      f"({error_m:.3f} m, {error_rad:.3f} rad)",
                      error_m <= XY_TOLERANCE_M and error_rad <= YAW_TOLERANCE_RAD),
                     no_collisions(rt)]
-        metrics = dict(away.metrics, base=[round(base.x, 3), round(base.y, 3)], return_done_s=self.return_done_s,
-                       base_error_m=round(error_m, 3), base_yaw_error_rad=round(error_rad, 3))
+        metrics = {k: v for k, v in away.metrics.items() if k not in ("final_error_m", "final_yaw_error_rad")}
+        # final_error_m is the Return's own (this used to be the Goto's error measured after the
+        # robot had gone home); the Goto's is goto_error_m, taken when its DONE arrived
+        metrics.update(goto_error_m=away.metrics["final_error_m"],
+                       goto_yaw_error_rad=away.metrics["final_yaw_error_rad"],
+                       base=[round(base.x, 3), round(base.y, 3)], return_done_s=self.return_done_s,
+                       final_error_m=round(error_m, 3), final_yaw_error_rad=round(error_rad, 3))
         return Verdict(all(ok for _, ok in criteria), criteria, metrics)
