@@ -113,6 +113,8 @@ class Scenario(abc.ABC):
     #: Whether the scenario runs with each robot in its own process (--processes): its script and
     #: criteria only read and call brains, never the robots' internals in place.
     runs_as_processes: ClassVar[bool] = False
+    #: What the `goal` of this scenario's metrics is, for the star in trajectory.png.
+    goal_label: ClassVar[str] = "leader's goal"
     #: The team of this scenario.
     robots: ClassVar[tuple[str, ...]] = ROBOTS
     #: Robots this scenario adds to the map's starts on the packaged office: name -> (pose, what

@@ -40,6 +40,7 @@ class GotoScenario(Scenario):
     summary = "robot_1 sends robot_2 a Goto for a pose in another room; progress, then DONE at the pose"
     time_limit_s = 120.0
     sender, mover = "robot_1", "robot_2"
+    goal_label = "robot_2's Goto target"
 
     def goal(self) -> Pose2D:
         if self.options.goal is not None:

@@ -129,7 +129,8 @@ class ShowScanScenario(Scenario):
             from rescuemesh.report.sensors import draw_scan_png  # matplotlib: only to write files
 
             paths.append(draw_scan_png(scan, self.map, folder / f"scan_{k}.png",
-                                       title=f"scan {k} from robot_2, received at {item[0]:.2f} s ({len(item[4])} B)"))
+                                       title=f"scan {k} from robot_2, received at {item[0]:.2f} s ({len(item[4])} B)",
+                                       spot=(self.target().x, self.target().y)))
         return paths
 
 
