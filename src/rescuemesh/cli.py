@@ -137,7 +137,10 @@ def build_parser() -> argparse.ArgumentParser:
                      help="team size for convoy (2 to 254; default 6); placed automatically behind robot_1")
     run.add_argument("--radius", type=float, default=1.5, help="move-around radius in m (default 1.5)")
     run.add_argument("--start", action="append", default=[], metavar="NAME=X,Y,YAW", help="a robot's start pose")
-    run.add_argument("--goal", default=None, metavar="X,Y", help="the leader's goal in follow/stop")
+    run.add_argument("--goal", default=None, metavar="X,Y[,YAW]",
+                     help="where the mission heads, in m (YAW in rad, default 0): the leader's goal in follow, "
+                          "stop, disconnect, spoof and convoy; robot_2's Goto pose in goto and return; the spot "
+                          "to show in show-scan and show-cam")
     run.add_argument("--time-limit", type=float, default=None, help="simulated seconds before giving up")
     run.add_argument("--radio", choices=["ble", "disc"], default="ble",
                      help="channel model: ble (walls, path loss, fading; default) or disc (10 m disc)")
@@ -169,6 +172,9 @@ def build_parser() -> argparse.ArgumentParser:
     robot.add_argument("--run-id", default="default", help="the world's run id (default: default)")
     robot.add_argument("--key", type=Path, default=None, metavar="FILE", help="team key file, when the world uses one")
     robot.add_argument("--wait", type=float, default=30.0, metavar="S", help="how long to wait for the world")
+    robot.add_argument("--link", choices=["zenoh"], default=None,
+                       help="zenoh: a robot on a real network instead, frames over Zenoh (its own options, "
+                            "--body, --listen, --follow, --goal ..., are listed below; docs/networks.md)")
     sub.add_parser("scenarios", help="list the scenarios")
     keys = sub.add_parser("keys", help="team keys")
     keys_sub = keys.add_subparsers(dest="keys_command", required=True, parser_class=_Parser)
@@ -215,6 +221,8 @@ def _main(argv: list[str] | None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv[:1] == ["robot"] and any(a == "--link" or a.startswith("--link=") for a in argv):
         return _linked_robot(argv[1:])
+    if argv[:1] == ["robot"] and any(a in ("-h", "--help") for a in argv[1:]):
+        return _robot_help()
     try:
         args = build_parser().parse_args(_join_negative_values(argv))
         _require_extra(args.command)
@@ -270,8 +278,8 @@ def _run(args) -> int:
         raise UsageError(f"--outage must be a finite number of seconds > 0, got {args.outage}")
     _check_seed(args.seed)
     if args.goal is not None and not args.goal.strip():
-        raise UsageError("--goal is empty: give X,Y in m")
-    goal = Pose2D(*_pose(args.goal, with_yaw=False)) if args.goal else None
+        raise UsageError("--goal is empty: give X,Y[,YAW] in m and rad")
+    goal = Pose2D(*_pose(args.goal, with_yaw=True)) if args.goal else None
     key, key_source = _team_key(args)
     options = ScenarioOptions(seed=args.seed, loss=args.loss, radius_m=args.radius, starts=_starts(args.start),
                               goal=goal, time_limit_s=args.time_limit, radio=RadioKind(args.radio),
@@ -385,6 +393,20 @@ def _robot(args) -> int:
     except ControlError as error:
         print(f"rescuemesh: error: {error}", file=sys.stderr)
         return EXIT_FAILED
+
+
+def _robot_help() -> int:
+    """`rescuemesh robot --help`: the options of both kinds of robot process (this used to list the
+    --link zenoh options only when --link zenoh came before --help)."""
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    print(sub.choices["robot"].format_help())
+    from rescuemesh.runtime.linked_robot import build_parser as linked_parser
+
+    linked = linked_parser()
+    linked.prog = "rescuemesh robot --link zenoh"
+    print(linked.format_help())
+    return 0
 
 
 def _linked_robot(argv: list[str]) -> int:

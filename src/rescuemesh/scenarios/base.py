@@ -28,6 +28,10 @@ ROBOTS = ("robot_1", "robot_2", "robot_3")
 OFFICE_MAP_NAME = "small_office"
 #: Two TurtleBot 2 footprints (0.177 m radius each) plus a little room.
 MIN_START_SEPARATION_M = 0.4
+#: A robot with no task, placed automatically, starts at least this far (m) from every other robot.
+IDLE_SEPARATION_M = 1.5
+#: Lattice points looked at beyond the team's size when placing idle robots.
+IDLE_SPARE_CANDIDATES = 12
 #: Room a ground robot needs around its start: the TurtleBot 2 footprint (0.177 m radius, as
 #: sim/mjcf.py CHASSIS_RADIUS) and a few mm. Every grid cell nearer than this must be free.
 START_CLEARANCE_M = 0.18
@@ -113,6 +117,9 @@ class Scenario(abc.ABC):
     #: Whether the scenario runs with each robot in its own process (--processes): its script and
     #: criteria only read and call brains, never the robots' internals in place.
     runs_as_processes: ClassVar[bool] = False
+    #: Robots with no task in this scenario: on a map with no start for one, it is placed
+    #: automatically (behind robot_1, away from the mission point, clear of the other starts).
+    idle_robots: ClassVar[tuple[str, ...]] = ("robot_3",)
     #: What the `goal` of this scenario's metrics is, for the star in trajectory.png.
     goal_label: ClassVar[str] = "leader's goal"
     #: The team of this scenario.
@@ -180,6 +187,9 @@ class Scenario(abc.ABC):
             if name not in robots:
                 raise ScenarioError(f"unknown robot {name!r}: this scenario has {', '.join(robots)}")
         starts.update(self.options.starts)
+        idle = [name for name in robots if name not in starts and name in self.idle_robots]
+        if idle and all(name in starts or name in idle for name in robots):
+            starts.update(self._place_idle(starts, idle))
         missing = [name for name in robots if name not in starts]
         if missing:
             raise ScenarioError(f"map {self.map.name!r} has no start pose for {', '.join(missing)}: "
@@ -200,6 +210,37 @@ class Scenario(abc.ABC):
                 raise ScenarioError(f"start of {name} ({pose.x:.2f}, {pose.y:.2f}) is {clearance:.2f} m from an "
                                     f"obstacle: a TurtleBot 2 needs {START_CLEARANCE_M:.2f} m")
         return starts
+
+    def mission_point(self) -> Pose2D | None:
+        """Where this scenario's mission heads (a goal, a spot to show): idle robots are placed away
+        from it. None: away from robot_1 only."""
+        return None
+
+    def _place_idle(self, starts: dict[str, Pose2D], idle: list[str]) -> dict[str, Pose2D]:
+        """Start poses for robots with no task and no start: lattice points behind robot_1 as the
+        convoy places its team (scenarios/team.py), at least IDLE_SEPARATION_M from every start."""
+        from rescuemesh.scenarios.team import PlacementError, place_behind
+
+        leader = starts.get("robot_1") or next(iter(starts.values()))
+        point = self.mission_point() or leader
+        try:
+            candidates = place_behind(self.map.grid, leader, (point.x, point.y),
+                                      len(starts) + len(idle) + IDLE_SPARE_CANDIDATES)[1:]
+        except PlacementError:
+            candidates = []
+        placed: dict[str, Pose2D] = {}
+        taken = list(starts.values())
+        for pose in candidates:
+            if len(placed) == len(idle):
+                break
+            if all(pose.distance_to(other) >= IDLE_SEPARATION_M for other in taken):
+                placed[idle[len(placed)]] = pose
+                taken.append(pose)
+        if len(placed) < len(idle):
+            names = ", ".join(name for name in idle if name not in placed)
+            raise ScenarioError(f"map {self.map.name!r}: no room found for {names} (no task here) behind robot_1: "
+                                f"give --start NAME=X,Y,YAW")
+        return placed
 
     def write_files(self, rt: SimRuntime, out_dir) -> list:
         """Files of the scenario's own beside result.json and the plots (received scans, images)."""

@@ -30,6 +30,9 @@ class FollowScenario(Scenario):
     def validate(self) -> None:
         self.require_free("goal", self.goal())
 
+    def mission_point(self) -> Pose2D:
+        return self.goal()
+
     def goal(self) -> Pose2D:
         if self.options.goal is not None:
             return self.options.goal

@@ -19,6 +19,8 @@ if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJo
 #: Where robot_2 is sent on the office: room_south, east of its table, facing north.
 OFFICE_GOTO = Pose2D(12.6, 2.4, math.pi / 2)
 XY_TOLERANCE_M, YAW_TOLERANCE_RAD = 0.15, 0.3
+#: The map's named goal (map YAML `goals:`) robot_2 is sent to when no --goal is given.
+MAP_GOAL = "goto"
 
 
 def _pose_at(samples, time_s: float | None) -> Pose2D:
@@ -42,12 +44,18 @@ class GotoScenario(Scenario):
     sender, mover = "robot_1", "robot_2"
     goal_label = "robot_2's Goto target"
 
+    def mission_point(self) -> Pose2D:
+        return self.goal()
+
     def goal(self) -> Pose2D:
         if self.options.goal is not None:
             return self.options.goal
         if self.on_office:
             return OFFICE_GOTO
-        raise ScenarioError(f"map {self.map.name!r} has no default Goto pose: give --goal X,Y")
+        if MAP_GOAL in self.map.goals:
+            return self.map.goals[MAP_GOAL]
+        raise ScenarioError(f"map {self.map.name!r} has no default Goto pose (goals: {MAP_GOAL}): "
+                            f"give --goal X,Y[,YAW]")
 
     def validate(self) -> None:
         self.require_free("goal", self.goal())
@@ -138,7 +146,7 @@ class ReturnScenario(GotoScenario):
 
     def evaluate(self, rt: SimRuntime) -> Verdict:
         away = super().evaluate(rt)
-        base = rt.trajectories[self.mover][0].pose
+        base = self.map.bases.get(self.mover, rt.trajectories[self.mover][0].pose)  # as the runtime sets it
         end = rt.trajectories[self.mover][-1].pose
         error_m, error_rad = end.distance_to(base), _angle(end.yaw, base.yaw)
         sent = self._outcome(rt, self._return)

@@ -22,6 +22,8 @@ if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJo
 #: In room_north, out of robot_2's sight from its start in the hall (the hall's east wall is between).
 OFFICE_TARGET = Pose2D(11.3, 7.6, 0.0)
 COUNT, PERIOD_S = 3, 1.0
+#: The map's named goal (map YAML `goals:`) used as the spot when no --goal is given.
+MAP_GOAL = "show"
 #: Images are larger: one every 3 s, so that each has the link to itself (docs/sensors.md).
 CAM_PERIOD_S = 3.0
 MIN_MOVE_M = 0.5
@@ -38,12 +40,18 @@ class ShowScanScenario(Scenario):
     kind = DataKind.LASER_SCAN
     folder = "scans"
 
+    def mission_point(self) -> Pose2D:
+        return self.target()
+
     def target(self) -> Pose2D:
         if self.options.goal is not None:
             return self.options.goal
         if self.on_office:
             return OFFICE_TARGET
-        raise ScenarioError(f"map {self.map.name!r} has no default position to look at: give --goal X,Y")
+        if MAP_GOAL in self.map.goals:
+            return self.map.goals[MAP_GOAL]
+        raise ScenarioError(f"map {self.map.name!r} has no default position to look at (goals: {MAP_GOAL}): "
+                            f"give --goal X,Y")
 
     def validate(self) -> None:
         self.require_free("position", self.target())
