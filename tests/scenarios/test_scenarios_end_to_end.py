@@ -4,6 +4,7 @@ import json
 import math
 
 import pytest
+from results_doc import undocumented
 
 from rescuemesh.cli import main
 
@@ -12,6 +13,7 @@ def run(tmp_path, *argv):
     code = main(["run", *argv, "--quiet", "--out", str(tmp_path)])
     result = json.loads((tmp_path / "result.json").read_text())
     assert (tmp_path / "trajectory.png").stat().st_size > 10_000
+    assert undocumented(result) == []  # every field defined in docs/results.md
     return code, result
 
 

@@ -229,7 +229,7 @@ class Scenario(abc.ABC):
         except PlacementError:
             candidates = []
         placed: dict[str, Pose2D] = {}
-        taken = list(starts.values())
+        taken = list(starts.values()) + list(self.map.bases.values())
         for pose in candidates:
             if len(placed) == len(idle):
                 break
