@@ -512,6 +512,10 @@ def _summary(outcome) -> None:
     metrics = ", ".join(f"{k}={v}" for k, v in r["metrics"].items() if not isinstance(v, (list, dict)))
     skipped = r["metrics"].get("waypoints_skipped")
     print(f"  metrics: {metrics}")
+    error = r["metrics"].get("following_error_m")
+    if isinstance(error, dict):
+        print(f"  following error against {error['set_distance_m']:g} m: mean {error['mean_m']:+.2f} m, "
+              f"RMS {error['rms_m']:.2f} m, largest {error['max_m']:+.2f} m")
     if skipped:
         print(f"  waypoints skipped (inside obstacles): {', '.join(skipped)}")
     ratio = "n/a" if p["delivery_ratio"] is None else f"{100 * p['delivery_ratio']:.0f} %"
