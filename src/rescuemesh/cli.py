@@ -136,7 +136,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--robots", type=int, default=None, metavar="N",
                      help="team size for convoy (2 to 254; default 6); placed automatically behind robot_1")
     run.add_argument("--radius", type=float, default=1.5, help="move-around radius in m (default 1.5)")
-    run.add_argument("--start", action="append", default=[], metavar="NAME=X,Y,YAW", help="a robot's start pose")
+    run.add_argument("--start", action="append", default=[], metavar="NAME=X,Y[,YAW]",
+                     help="a robot's start pose in m and rad (repeatable)")
     run.add_argument("--goal", default=None, metavar="X,Y[,YAW]",
                      help="where the mission heads, in m (YAW in rad, default 0): the leader's goal in follow, "
                           "stop, disconnect, spoof and convoy; robot_2's Goto pose in goto and return; the spot "

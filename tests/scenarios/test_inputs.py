@@ -78,3 +78,9 @@ def test_robot_help_lists_the_linked_robot_s_options(capsys):
     text = capsys.readouterr().out
     for option in ("--link", "--body", "--listen", "--follow", "--goal", "--connect", "--wait"):
         assert option in text
+
+
+def test_a_goal_for_a_scenario_that_takes_none_is_refused(capsys):
+    # this used to be ignored without a word (relay drives its own fixed leg)
+    assert main(["run", "relay", "--goal", "3,3", "--quiet"]) == 2
+    assert "--goal applies to follow" in capsys.readouterr().err

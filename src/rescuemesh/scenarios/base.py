@@ -112,6 +112,8 @@ class Scenario(abc.ABC):
 
     #: Whether --outage means anything to this scenario.
     takes_outage: ClassVar[bool] = False
+    #: Whether --goal means anything to this scenario (a leader's goal, a Goto pose, a spot to show).
+    takes_goal: ClassVar[bool] = False
     #: Whether --robots N means anything to this scenario (it then sets `robots` from it).
     takes_team_size: ClassVar[bool] = False
     #: Whether the scenario runs with each robot in its own process (--processes): its script and
@@ -134,6 +136,9 @@ class Scenario(abc.ABC):
         self.map = map_model
         if options.outage_s is not None and not self.takes_outage:
             raise ScenarioError(f"--outage applies to the disconnect scenario, not to {self.name}")
+        if options.goal is not None and not self.takes_goal:
+            raise ScenarioError(f"--goal applies to follow, stop, disconnect, spoof, convoy, goto, return, show-scan "
+                                f"and show-cam, not to {self.name}")
         if options.robots is not None and not self.takes_team_size:
             raise ScenarioError(f"--robots applies to the convoy scenario, not to {self.name} (its team is "
                                 f"{', '.join(self.robots)})")

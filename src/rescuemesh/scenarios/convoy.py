@@ -65,6 +65,7 @@ class ConvoyScenario(Scenario):
                "passage and a doorway into the hall")
     time_limit_s = 400.0
     takes_team_size = True
+    takes_goal = True
 
     def __init__(self, options, map_model) -> None:
         count = DEFAULT_TEAM if options.robots is None else options.robots

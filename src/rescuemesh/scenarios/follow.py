@@ -26,6 +26,7 @@ class FollowScenario(Scenario):
     time_limit_s = 120.0
     leader, follower = "robot_1", "robot_2"
     runs_as_processes = True
+    takes_goal = True
 
     def validate(self) -> None:
         self.require_free("goal", self.goal())

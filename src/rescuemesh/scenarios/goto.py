@@ -39,6 +39,7 @@ def _angle(a: float, b: float) -> float:
 class GotoScenario(Scenario):
     name = "goto"
     runs_as_processes = True
+    takes_goal = True
     summary = "robot_1 sends robot_2 a Goto for a pose in another room; progress, then DONE at the pose"
     time_limit_s = 120.0
     sender, mover = "robot_1", "robot_2"

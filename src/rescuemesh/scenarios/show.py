@@ -34,6 +34,7 @@ LATE_DATA_S = 10.0
 class ShowScanScenario(Scenario):
     name = "show-scan"
     runs_as_processes = True
+    takes_goal = True
     summary = "robot_1 asks robot_2 for 3 scans of a spot around a corner; robot_2 moves to see it and sends them"
     time_limit_s = 120.0
     asker, sensor = "robot_1", "robot_2"
