@@ -35,7 +35,7 @@ def test_the_page_defines_no_field_a_run_does_not_have(follow_result):
     documented = documented_fields()
     fields = result_fields(follow_result, documented)
     general = {f for f in documented if f.split(".")[0] in ("scenario", "seed", "success", "criteria", "sim_time_s",
-                                                             "wall_time_s", "real_time_factor", "settings",
-                                                             "robots", "network", "events")}
+                                                             "wall_time_s", "real_time_factor", "robots", "network",
+                                                             "events")}
     general |= {f for f in documented if f.startswith("protocol.") and ".by_type.TYPE." not in f}
     assert sorted(general - fields) == []
