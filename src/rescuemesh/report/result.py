@@ -1,4 +1,4 @@
-"""result.json: what a run did, in a stable schema (see README "Reading the output").
+"""result.json: what a run did, in a stable schema (docs/results.md defines every field).
 
 Owns: turning a finished run into a JSON-able dict and writing it. Must not know: plotting.
 Same seed, same result except the wall-clock fields (`wall_time_s`, `real_time_factor`).
@@ -9,8 +9,6 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
-
-from rescuemesh.report.delivery import by_message_type, confirm_latency
 
 
 def _path_length(samples) -> float:
@@ -73,6 +71,8 @@ def protocol_summary(rt) -> dict:
     what the radio did with them at their intended receivers, end-to-end delivery and latency per
     message type, and the commands the missions sent, confirmed, given up and left open
     (docs/results.md defines every field)."""
+    from rescuemesh.report.delivery import by_message_type, confirm_latency
+
     endpoints = [b.endpoint.stats for b in rt.brains.values()]
     medium = rt.medium.stats
     every_command = [c for b in rt.brains.values() for c in b.outgoing.values()]
