@@ -81,4 +81,5 @@ def test_no_relay_counts_the_missions_commands_apart_from_automatic_stops(no_rel
     stops = p["automatic_stops"]
     assert stops["sent"] == 3 and stops["failed"] + stops["pending"] + stops["confirmed"] == 3
     assert stops["pending"] == 1
-    assert r["network"]["receptions_lost"]["bit_errors"] == 0 and r["network"]["receptions_lost"]["below_sensitivity"] > 0
+    lost = r["network"]["receptions_lost"]
+    assert lost["bit_errors"] == 0 and lost["below_sensitivity"] > 0
