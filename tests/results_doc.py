@@ -51,9 +51,13 @@ def result_fields(result: dict, documented: set[str]) -> set[str]:
     return found
 
 
-def undocumented(result: dict) -> list[str]:
+def undocumented(result: dict, *, named_metrics: bool = False) -> list[str]:
     """Fields of `result` the page does not define (a container whose fields it defines, such as
-    robots.NAME, counts as defined)."""
+    robots.NAME, counts as defined). `named_metrics`: a mission file's run, whose `metrics` are the
+    ones its file names (docs/missions.md), not the page's."""
     documented = documented_fields()
     prefixes = {f.rsplit(".", k)[0] for f in documented for k in range(1, f.count(".") + 1)}
-    return sorted(result_fields(result, documented) - documented - prefixes)
+    missing = result_fields(result, documented) - documented - prefixes
+    if named_metrics:
+        missing = {f for f in missing if not f.startswith("metrics.")}
+    return sorted(missing)
