@@ -137,8 +137,12 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--robots", type=int, default=None, metavar="N",
                      help="team size for convoy (2 to 254; default 6); placed automatically behind robot_1")
     run.add_argument("--radius", type=float, default=1.5, help="move-around radius in m (default 1.5)")
-    run.add_argument("--start", action="append", default=[], metavar="NAME=X,Y,YAW", help="a robot's start pose")
-    run.add_argument("--goal", default=None, metavar="X,Y", help="the leader's goal in follow/stop")
+    run.add_argument("--start", action="append", default=[], metavar="NAME=X,Y[,YAW]",
+                     help="a robot's start pose in m and rad (repeatable)")
+    run.add_argument("--goal", default=None, metavar="X,Y[,YAW]",
+                     help="where the mission heads, in m (YAW in rad, default 0): the leader's goal in follow, "
+                          "stop, disconnect, spoof and convoy; robot_2's Goto pose in goto and return; the spot "
+                          "to show in show-scan and show-cam")
     run.add_argument("--time-limit", type=float, default=None, help="simulated seconds before giving up")
     run.add_argument("--radio", choices=["ble", "disc"], default="ble",
                      help="channel model: ble (walls, path loss, fading; default) or disc (10 m disc)")
@@ -170,6 +174,9 @@ def build_parser() -> argparse.ArgumentParser:
     robot.add_argument("--run-id", default="default", help="the world's run id (default: default)")
     robot.add_argument("--key", type=Path, default=None, metavar="FILE", help="team key file, when the world uses one")
     robot.add_argument("--wait", type=float, default=30.0, metavar="S", help="how long to wait for the world")
+    robot.add_argument("--link", choices=["zenoh"], default=None,
+                       help="zenoh: a robot on a real network instead, frames over Zenoh (its own options, "
+                            "--body, --listen, --follow, --goal ..., are listed below; docs/networks.md)")
     sub.add_parser("scenarios", help="list the scenarios")
     keys = sub.add_parser("keys", help="team keys")
     keys_sub = keys.add_subparsers(dest="keys_command", required=True, parser_class=_Parser)
@@ -219,6 +226,8 @@ def _main(argv: list[str] | None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv[:1] == ["robot"] and any(a == "--link" or a.startswith("--link=") for a in argv):
         return _linked_robot(argv[1:])
+    if argv[:1] == ["robot"] and any(a in ("-h", "--help") for a in argv[1:]):
+        return _robot_help()
     try:
         args = build_parser().parse_args(_join_negative_values(argv))
         _require_extra(args.command)
@@ -286,8 +295,8 @@ def _run(args) -> int:
         raise UsageError(f"--outage must be a finite number of seconds > 0, got {args.outage}")
     _check_seed(args.seed)
     if args.goal is not None and not args.goal.strip():
-        raise UsageError("--goal is empty: give X,Y in m")
-    goal = Pose2D(*_pose(args.goal, with_yaw=False)) if args.goal else None
+        raise UsageError("--goal is empty: give X,Y[,YAW] in m and rad")
+    goal = Pose2D(*_pose(args.goal, with_yaw=True)) if args.goal else None
     key, key_source = _team_key(args)
     options = ScenarioOptions(seed=args.seed, loss=args.loss, radius_m=args.radius, starts=_starts(args.start),
                               goal=goal, time_limit_s=args.time_limit, radio=RadioKind(args.radio),
@@ -415,6 +424,20 @@ def _robot(args) -> int:
         return EXIT_FAILED
 
 
+def _robot_help() -> int:
+    """`rescuemesh robot --help`: the options of both kinds of robot process (this used to list the
+    --link zenoh options only when --link zenoh came before --help)."""
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    print(sub.choices["robot"].format_help())
+    from rescuemesh.runtime.linked_robot import build_parser as linked_parser
+
+    linked = linked_parser()
+    linked.prog = "rescuemesh robot --link zenoh"
+    print(linked.format_help())
+    return 0
+
+
 def _linked_robot(argv: list[str]) -> int:
     """`rescuemesh robot --link zenoh ...`: a robot on a real network, its frames over Zenoh with no
     simulated channel (runtime/linked_robot.py, docs/networks.md). Ends the process itself: a Zenoh
@@ -518,12 +541,21 @@ def _summary(outcome) -> None:
     metrics = ", ".join(f"{k}={v}" for k, v in r["metrics"].items() if not isinstance(v, (list, dict)))
     skipped = r["metrics"].get("waypoints_skipped")
     print(f"  metrics: {metrics}")
+    error = r["metrics"].get("following_error_m")
+    if isinstance(error, dict):
+        print(f"  following error against {error['set_distance_m']:g} m: mean {error['mean_m']:+.2f} m, "
+              f"RMS {error['rms_m']:.2f} m, largest {error['max_m']:+.2f} m")
     if skipped:
         print(f"  waypoints skipped (inside obstacles): {', '.join(skipped)}")
     ratio = "n/a" if p["delivery_ratio"] is None else f"{100 * p['delivery_ratio']:.0f} %"
+    stops = p["automatic_stops"]
+    automatic = (f"; automatic Stops {stops['sent']} ({stops['confirmed']} confirmed, {stops['failed']} failed, "
+                 f"{stops['pending']} pending)") if stops["sent"] else ""
     print(f"  protocol: {p['unicast_frames_sent']} unicast + {p['broadcast_frames_sent']} broadcast frames sent "
-          f"({p['bytes_sent']} B), {p['retries']} retries, {p['confirms']} confirms; commands "
-          f"{p['commands_confirmed']}/{p['commands_sent']} confirmed ({ratio}), {p['commands_failed']} failed")
+          f"({p['bytes_sent']} B), {p['retries']} retries, {p['confirms']} confirms; unicast sends delivered "
+          f"end to end {p['unicast_sends_delivered']}/{p['unicast_sends']} ({ratio}); commands "
+          f"{p['commands_confirmed']}/{p['commands_sent']} confirmed, {p['commands_failed']} failed, "
+          f"{p['commands_pending']} pending{automatic}")
     hops = ", ".join(f"{k} hop{'s' if k != '1' else ''}: {v}" for k, v in n["hops_histogram"].items())
     print(f"  network: {n['transmissions']} transmissions ({n['relayed_frames']} relayed, "
           f"{n['segment_transmissions']} segments, largest {p['max_frame_bytes']} B), airtime {n['airtime_s']:.2f} s, "

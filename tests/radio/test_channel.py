@@ -124,5 +124,5 @@ def test_reception_is_immutable():
     r = Reception(True, -60.0, None)
     with pytest.raises(AttributeError):
         r.delivered = False  # type: ignore[misc]
-    assert {c.value for c in LossCause} == {"out_of_range", "bit_errors", "collision", "extra_loss",
+    assert {c.value for c in LossCause} == {"out_of_range", "below_sensitivity", "bit_errors", "collision", "extra_loss",
                                            "radio_off", "half_duplex"}

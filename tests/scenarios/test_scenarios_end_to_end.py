@@ -4,6 +4,7 @@ import json
 import math
 
 import pytest
+from results_doc import undocumented
 
 from rescuemesh.cli import main
 
@@ -12,6 +13,7 @@ def run(tmp_path, *argv):
     code = main(["run", *argv, "--quiet", "--out", str(tmp_path)])
     result = json.loads((tmp_path / "result.json").read_text())
     assert (tmp_path / "trajectory.png").stat().st_size > 10_000
+    assert undocumented(result) == []  # every field defined in docs/results.md
     return code, result
 
 
@@ -199,7 +201,10 @@ def test_goto_arrives_within_tolerance_with_progress_reports(tmp_path):
 def test_return_brings_robot_2_back_to_its_base(tmp_path):
     code, result = run(tmp_path, "return")
     assert_common(result, code)
-    assert result["metrics"]["base_error_m"] <= 0.15 and result["robots"]["robot_2"]["final_region"] == "hall"
+    assert result["metrics"]["final_error_m"] <= 0.15 and result["robots"]["robot_2"]["final_region"] == "hall"
+    # this used to report the Goto's error measured after the robot had gone home (7.689 m on a success)
+    m = result["metrics"]
+    assert m["goto_error_m"] <= 0.15 and m["goto_yaw_error_rad"] <= 0.3 and m["final_yaw_error_rad"] <= 0.3
 
 
 def test_priority_rejects_the_peer_and_lets_the_operator_preempt(tmp_path):

@@ -55,7 +55,7 @@ POSE_RANGE_M = (-327.68, 327.67)
 MAX_OCCUPIED_FRACTION = 0.9
 MAX_SHOWN_CHARS = 80  # a value quoted in a MapError is cut to about this many characters
 
-_WALL_MAP_KEYS = {"name", "wall_height", "walls", "regions", "doorways", "starts", "goals"}
+_WALL_MAP_KEYS = {"name", "wall_height", "walls", "regions", "doorways", "starts", "goals", "bases"}
 
 
 def load_map(path: str | Path, grid_resolution: float = 0.05) -> MapModel:
@@ -233,11 +233,12 @@ def _extras(doc: dict[str, Any], fail: _Failer) -> dict[str, Any]:
         "doorways": tuple(_rect(v, f"doorways[{i}]", fail) for i, v in enumerate(_sequence(doc, "doorways", fail))),
         "starts": {n: _pose(v, f"starts.{_cut(n)}", fail) for n, v in _mapping(doc, "starts", fail).items()},
         "goals": {n: _pose(v, f"goals.{_cut(n)}", fail) for n, v in _mapping(doc, "goals", fail).items()},
+        "bases": {n: _pose(v, f"bases.{_cut(n)}", fail) for n, v in _mapping(doc, "bases", fail).items()},
     }
 
 
 def _check_poses_free(grid: OccupancyGrid, extras: dict[str, Any], fail: _Failer) -> None:
-    for kind in ("starts", "goals"):
+    for kind in ("starts", "goals", "bases"):
         for name, pose in extras[kind].items():
             if not grid.in_bounds(*grid.world_to_cell(pose.x, pose.y)):
                 fail(f"{kind}.{_cut(name)} ({pose.x:g}, {pose.y:g}) lies outside the map")

@@ -45,7 +45,8 @@ class MapModel:
     - `bounds`: the rectangle the map covers.
     - `regions`: named areas ("hall", "room_east", ...) for success criteria and plot labels.
     - `doorways`: openings to mark on plots.
-    - `starts`: default robot start poses by robot name; `goals`: named default goals.
+    - `starts`: default robot start poses by robot name; `goals`: named default goals;
+      `bases`: where each named robot's Return goes (default: its start pose).
     """
 
     name: str
@@ -58,6 +59,7 @@ class MapModel:
     doorways: tuple[Rect, ...] = ()
     starts: dict[str, Pose2D] = field(default_factory=dict)
     goals: dict[str, Pose2D] = field(default_factory=dict)
+    bases: dict[str, Pose2D] = field(default_factory=dict)
 
     def region_of(self, x: float, y: float) -> str | None:
         """Name of the first region that contains (x, y), or None."""

@@ -283,11 +283,14 @@ class BleChannel(ChannelModel):
             bits = self._bits[frame_bytes] = crc_covered_bits(frame_bytes)
         u_radius, u_angle, u_error = uniforms(rng, 3)
         gain = rician_gain_from_uniforms(u_radius, u_angle, self._k)
+        # a loss on a link whose mean power is below sensitivity is that link's lack of reach (it gets
+        # through only on a fading peak), not bad luck on a working link: counted apart
+        cause = LossCause.BELOW_SENSITIVITY if mean < self._sens else LossCause.BIT_ERRORS
         if gain <= 0.0:
-            return Reception(False, -math.inf, LossCause.BIT_ERRORS)
+            return Reception(False, -math.inf, cause)
         rssi = mean + 10.0 * math.log10(gain)
         if u_error < packet_error_rate_scalar(rssi - self._sens, bits):
-            return Reception(False, rssi, LossCause.BIT_ERRORS)
+            return Reception(False, rssi, cause)
         return Reception(True, rssi, None)
 
     def delivery_probability(self, tx_xy: Point, rx_xy: Point, frame_bytes: int) -> float:

@@ -57,10 +57,11 @@ def ble_adv_airtime_s(frame_bytes: int) -> float:
 
 
 class LossCause(enum.Enum):
-    """Why a reception failed. Models produce the first two; the medium uses the last four."""
+    """Why a reception failed. Models produce the first three; the medium uses the last four."""
 
-    OUT_OF_RANGE = "out_of_range"  # mean power far below sensitivity (disc: beyond the range)
-    BIT_ERRORS = "bit_errors"  # the packet-error draw failed (fading and noise)
+    OUT_OF_RANGE = "out_of_range"  # mean power far below sensitivity (disc: beyond the range): not audible
+    BELOW_SENSITIVITY = "below_sensitivity"  # audible, but mean power below sensitivity: out of reach on average
+    BIT_ERRORS = "bit_errors"  # mean power at or above sensitivity; the packet-error draw failed (fading, noise)
     COLLISION = "collision"  # another audible frame overlapped this one at the receiver
     EXTRA_LOSS = "extra_loss"  # the configured extra independent loss (--loss)
     RADIO_OFF = "radio_off"  # the receiving radio was switched off

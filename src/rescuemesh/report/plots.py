@@ -103,7 +103,11 @@ def map_shades(map_model) -> np.ndarray:
     return np.where(blocked, np.where(walls, WALL_SHADE, UNKNOWN_SHADE), FREE_SHADE)
 
 
-def plot_trajectories(rt, map_model, path: Path, *, title: str = "", metrics: dict | None = None) -> Path:
+def plot_trajectories(rt, map_model, path: Path, *, title: str = "", metrics: dict | None = None,
+                      goal_label: str = "goal") -> Path:
+    """Draw trajectory.png. `metrics` may hold what to mark: `goal` (a star labelled `goal_label`:
+    whose goal it is, e.g. "leader's goal" or "robot_2's Goto target"), `target` (a spot asked to be
+    shown), `base` (where Return goes), `stop_position`, a MoveAround `center` and `radius_m`."""
     metrics = metrics or {}
     view = view_extent(map_model, rt.trajectories, VIEW_MARGIN_M, _metric_points(metrics))
     width = view[1] - view[0]
@@ -120,7 +124,13 @@ def plot_trajectories(rt, map_model, path: Path, *, title: str = "", metrics: di
                                facecolor="#ffd54f", edgecolor="#b28704", alpha=0.7, lw=0.8, zorder=2))
     if "goal" in metrics and metrics["goal"]:
         gx, gy = metrics["goal"]
-        ax.plot(gx, gy, marker="*", ms=16, color="gold", mec="k", zorder=6, ls="none", label="leader goal")
+        ax.plot(gx, gy, marker="*", ms=16, color="gold", mec="k", zorder=6, ls="none", label=goal_label)
+    if metrics.get("target"):
+        tx, ty = metrics["target"][:2]
+        ax.plot(tx, ty, marker="P", ms=13, color="#00bcd4", mec="k", zorder=6, ls="none", label="spot asked for")
+    if metrics.get("base"):
+        bx, by = metrics["base"][:2]
+        ax.plot(bx, by, marker="h", ms=13, color="#8bc34a", mec="k", zorder=6, ls="none", label="base (Return)")
     if metrics.get("stop_position"):
         sx, sy = metrics["stop_position"]
         ax.plot(sx, sy, marker="X", ms=12, color="k", mfc="#ff7f0e", ls="none", zorder=7,
@@ -196,7 +206,7 @@ def _display_map(map_model, view) -> tuple[np.ndarray, tuple[float, float, float
 
 def _metric_points(metrics: dict) -> list[tuple[float, float]]:
     """Points the view must hold besides the map and the paths: the goal, a Stop, a MoveAround circle."""
-    points = [tuple(metrics[key][:2]) for key in ("goal", "stop_position") if metrics.get(key)]
+    points = [tuple(metrics[key][:2]) for key in ("goal", "target", "base", "stop_position") if metrics.get(key)]
     if metrics.get("center") and metrics.get("radius_m"):
         (cx, cy), r = metrics["center"][:2], metrics["radius_m"]
         points += [(cx - r, cy - r), (cx + r, cy + r)]

@@ -1,4 +1,4 @@
-"""result.json: what a run did, in a stable schema (see README "Reading the output").
+"""result.json: what a run did, in a stable schema (docs/results.md defines every field).
 
 Owns: turning a finished run into a JSON-able dict and writing it. Must not know: plotting.
 Same seed, same result except the wall-clock fields (`wall_time_s`, `real_time_factor`).
@@ -72,29 +72,50 @@ def build_result(scenario, rt, verdict, wall_time_s: float, map_model) -> dict:
 
 def protocol_summary(rt) -> dict:
     """End-to-end protocol figures: frames the endpoints originated (unicast and broadcast apart),
-    what the radio did with them at their intended receivers, and commands confirmed / sent."""
+    what the radio did with them at their intended receivers, end-to-end delivery and latency per
+    message type, and the commands the missions sent, confirmed, given up and left open
+    (docs/results.md defines every field)."""
+    from rescuemesh.report.delivery import by_message_type, confirm_latency
+
     endpoints = [b.endpoint.stats for b in rt.brains.values()]
     medium = rt.medium.stats
-    commands = [c for b in rt.brains.values() for c in b.outgoing.values()]
-    confirmed = sum(1 for c in commands if c.result is not None and not c.failed)
+    every_command = [c for b in rt.brains.values() for c in b.outgoing.values()]
+    commands = [c for c in every_command if not c.automatic]
+    automatic = [c for c in every_command if c.automatic]
+    confirmed = sum(1 for c in commands if c.confirmed_s is not None)
+    records = rt.medium.records or []
+    by_type = by_message_type(records, len(rt.brains))
+    sends = sum(row.get("sends", 0) for row in by_type.values())
+    sends_delivered = sum(row.get("sends_delivered", 0) for row in by_type.values())
     return {
         "frames_sent": sum(s.frames_sent for s in endpoints),
         "unicast_frames_sent": sum(s.frames_sent - s.broadcasts_sent for s in endpoints),
         "broadcast_frames_sent": sum(s.broadcasts_sent for s in endpoints),
         "unicast_receptions": {"delivered": medium.unicast_delivered, "lost": medium.unicast_lost},
         "broadcast_receptions": {"delivered": medium.broadcast_delivered, "lost": medium.broadcast_lost},
-        "frames_lost": medium.unicast_lost + medium.broadcast_lost,
-        "frames_out_of_range": medium.receptions_lost["out_of_range"],
+        "relayed_receptions": {"delivered": medium.relayed_delivered, "lost": medium.relayed_lost},
+        "frames_lost": medium.unicast_lost + medium.broadcast_lost + medium.relayed_lost,
         "retries": sum(s.retries for s in endpoints),
         "confirms": sum(s.confirms_sent for s in endpoints),
         "confirms_received": sum(s.confirms_received for s in endpoints),
         "duplicates_suppressed": sum(s.duplicates for s in endpoints),
         "frames_rejected": sum(s.frames_rejected for s in endpoints),
         "delivery_failures": sum(s.delivery_failures for s in endpoints),
+        "unicast_sends": sends,
+        "unicast_sends_delivered": sends_delivered,
+        "delivery_ratio": round(sends_delivered / sends, 4) if sends else None,
+        "by_type": by_type,
         "commands_sent": len(commands),
         "commands_confirmed": confirmed,
-        "delivery_ratio": round(confirmed / len(commands), 4) if commands else None,
-        "commands_failed": sum(b.commands_failed for b in rt.brains.values()),
+        "command_confirm_ratio": round(confirmed / len(commands), 4) if commands else None,
+        "commands_failed": sum(1 for c in commands if c.failed),
+        "commands_pending": sum(1 for c in commands if not c.failed and c.result is None),
+        "streams_failed": sum(1 for c in commands if not c.failed and c.result is not None
+                              and c.kind == "Follow" and c.reason.name in ("LINK_LOST", "PARTNER_SILENT")),
+        "automatic_stops": {"sent": len(automatic), "confirmed": sum(1 for c in automatic if c.confirmed_s is not None),
+                            "failed": sum(1 for c in automatic if c.failed),
+                            "pending": sum(1 for c in automatic if not c.failed and c.result is None)},
+        "confirm_latency_s": confirm_latency(commands),
         "bytes_sent": sum(s.bytes_sent for s in endpoints),
         "max_frame_bytes": medium.max_frame_bytes,
         "max_logical_frame_bytes": max((s.max_frame_bytes for s in endpoints), default=0),

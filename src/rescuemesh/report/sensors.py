@@ -23,11 +23,13 @@ from rescuemesh.body import LaserScan  # noqa: E402
 MARGIN_M = 1.0  # around the map
 
 
-def draw_scan_png(scan: LaserScan, map_model, path: str | Path, *, title: str = "") -> Path:
+def draw_scan_png(scan: LaserScan, map_model, path: str | Path, *, title: str = "",
+                  spot: tuple[float, float] | None = None) -> Path:
     """Draw `scan` on `map_model` and write a PNG to `path` (parent folders made as needed).
 
     Walls grey, doorways yellow, the scan's field of view as a light wedge of radius range_max, its
-    returns as red dots, the robot's pose as a blue arrow; the title gives the stamp, pose and beams.
+    returns as red dots, the robot's pose as a blue arrow, the `spot` asked for (x, y) as a cyan
+    cross; the title gives the stamp, pose and beams.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -53,13 +55,16 @@ def draw_scan_png(scan: LaserScan, map_model, path: str | Path, *, title: str = 
         ax.arrow(o.x, o.y, 0.5 * math.cos(o.yaw), 0.5 * math.sin(o.yaw), width=0.06, head_width=0.25,
                  length_includes_head=True, color="#1f77b4", zorder=5)
         ax.plot([o.x], [o.y], "o", ms=6, color="#1f77b4", zorder=5, label="robot")
+        if spot is not None:
+            ax.plot([spot[0]], [spot[1]], marker="P", ms=13, color="#00bcd4", mec="k", ls="none", zorder=6,
+                    label=f"spot asked for ({spot[0]:.2f}, {spot[1]:.2f})")
         ax.set_xlim(b.x_min - MARGIN_M, b.x_max + MARGIN_M)
         ax.set_ylim(b.y_min - MARGIN_M, b.y_max + MARGIN_M)
         ax.set_aspect("equal")
         ax.set_xlabel("x (m)")
         ax.set_ylabel("y (m)")
         ax.grid(True, lw=0.3, alpha=0.5)
-        ax.legend(loc="upper right", fontsize=8)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
         heading = f"scan at t = {scan.stamp:.2f} s from ({o.x:.2f}, {o.y:.2f}) m, yaw {math.degrees(o.yaw):.0f} deg"
         ax.set_title(f"{title}\n{heading}" if title else heading, fontsize=10)
         fig.tight_layout()

@@ -44,6 +44,10 @@ def _kind(record) -> str:
     return _KIND_OF_TYPE.get(record.msg_type, "Command")
 
 
+#: The speed axis reaches at least this, in m/s (a still team's markers sit on 0, in view).
+MIN_SPEED_AXIS = 0.1
+
+
 def plot_timeline(rt, path: Path, *, title: str = "", metrics: dict | None = None) -> Path:
     """Draw the timeline; a metrics `outage_start_s`/`outage_end_s` pair is shaded as a radio outage."""
     names = list(rt.trajectories)
@@ -63,7 +67,10 @@ def plot_timeline(rt, path: Path, *, title: str = "", metrics: dict | None = Non
                        label="robot_1's radio off" if ax is ax_speed else None)
     if not large:
         ax_speed.set_ylabel("speed [m/s]")
-        ax_speed.set_ylim(bottom=-0.02)
+        # at least 0..MIN_SPEED_AXIS: a run where no robot moved (relay --no-relay) used to get an axis
+        # from -0.02 to 0 with its markers cut in half
+        top = max((s.speed for samples in rt.trajectories.values() for s in samples), default=0.0)
+        ax_speed.set_ylim(-0.02, max(MIN_SPEED_AXIS, 1.08 * top))
     ax_speed.legend(loc="upper left", bbox_to_anchor=(1.09 if large else 1.01, 1.0), fontsize=8, frameon=False)
     ax_speed.grid(True, lw=0.3, alpha=0.5)
     ax_speed.set_title(title, fontsize=11)

@@ -152,10 +152,13 @@ class RobotBrain(SensorCommands):
         """Send Follow to `peer`; once it is ACCEPTED, stream this robot's pose to it."""
         return self.send(peer, Follow(to_wire_pose(self.body.pose())), now)
 
-    def command_stop(self, peer: int, now: float) -> int:
-        """Send Stop to `peer`, and end any pose stream to it."""
+    def command_stop(self, peer: int, now: float, *, automatic: bool = False) -> int:
+        """Send Stop to `peer`, and end any pose stream to it (`automatic`: the brain's own safety
+        Stop, not a mission's or user's command; counted apart in result.json)."""
         self.streams.pop(peer, None)
-        return self.send(peer, Stop(), now)
+        seq = self.send(peer, Stop(), now)
+        self.outgoing[seq].automatic = automatic
+        return seq
 
     def command_move_around(self, peer: int, radius_m: float, now: float) -> int:
         """Send MoveAround: `peer` circles this robot's present position at `radius_m`."""
@@ -382,6 +385,8 @@ class RobotBrain(SensorCommands):
         if sent is None or sent.peer != event.src:
             return
         sent.result, sent.reason = event.result, event.reason
+        if sent.confirmed_s is None:
+            sent.confirmed_s = event.now
         if event.solicited:
             sent.sends, sent.hops = event.sends, event.hops
         why = f" ({event.reason.name})" if event.reason is not Reason.NONE else ""
@@ -415,7 +420,7 @@ class RobotBrain(SensorCommands):
         self._note(now, "command_given_up", f"{sent.kind} to {robot_name(event.dst)} after {event.sends} sends")
         if sent.msg_type in MOTION_COMMANDS:
             # The receiver may have executed it with every Confirm lost: bring both sides to a stop.
-            self.command_stop(event.dst, now)
+            self.command_stop(event.dst, now, automatic=True)
 
     def _on_peer_restarted(self, event: PeerRestarted, now: float) -> None:
         self._note(now, "peer_restarted", f"{robot_name(event.address)} in epoch {event.epoch}")
@@ -492,7 +497,7 @@ class RobotBrain(SensorCommands):
             sent.result, sent.reason = ResultCode.FAILED, reason
         self.commands_failed += 1
         self._note(now, "follow_given_up", f"{robot_name(peer)}: {detail}")
-        self.command_stop(peer, now)  # best effort: "both sides stop it"
+        self.command_stop(peer, now, automatic=True)  # best effort: "both sides stop it"
 
     # ----- ForwardMsg jobs -----
 

@@ -88,7 +88,9 @@ class BrainEvent:
 @dataclass
 class OutgoingCommand:
     """A command this robot sent, and what became of it: the latest result and reason reported,
-    the sends the first Confirm took and the hops it crossed; `failed` when given up unconfirmed."""
+    the sends the first Confirm took and the hops it crossed; `failed` when given up unconfirmed;
+    `confirmed_s` when its first Confirm arrived; `automatic` for a Stop the brain sent on its own
+    (after a motion command was given up, or a Follow ended by link loss), not asked by a mission."""
 
     seq: int
     peer: int
@@ -100,6 +102,8 @@ class OutgoingCommand:
     sends: int = 0
     hops: int | None = None
     failed: bool = False
+    confirmed_s: float | None = None
+    automatic: bool = False
 
 
 @dataclass

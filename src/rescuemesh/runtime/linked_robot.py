@@ -72,7 +72,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--map", default=None, metavar="FILE",
                    help=f"a map file (default: an empty {EMPTY_MAP_SIZE_M:g} m square centred on the origin)")
     p.add_argument("--follow", default=None, metavar="ROBOT", help="command ROBOT to follow this robot")
-    p.add_argument("--goal", default=None, metavar="X,Y", help="drive there (after the Follow is accepted)")
+    p.add_argument("--goal", default=None, metavar="X,Y[,YAW]", help="drive there (after the Follow is accepted)")
     p.add_argument("--linger", type=float, default=LEADER_LINGER_S, metavar="S",
                    help=f"the leader waits S s at its goal before it sends Stop (default {LEADER_LINGER_S:g})")
     p.add_argument("--ack-timeout", type=float, default=ZENOH_ACK_TIMEOUT_S, metavar="S",

@@ -130,7 +130,8 @@ class RobotWorker:
             raise ControlError(f"{self.name}: this world uses a team key file: start the robot with --key FILE")
         self.body = RemoteBody(self.name, setup.start, setup.kind, setup.top_height)
         self.brain, self.stack = assemble_robot(self.name, self.body, Costmap(setup.map_model.grid), config,
-                                                team_sealer(config), setup.start, epoch=setup.epoch)
+                                                team_sealer(config),
+                                                setup.map_model.bases.get(self.name, setup.start), epoch=setup.epoch)
         return self.stack.get_timer()
 
     def _tick(self, now: float, state: BodyState):

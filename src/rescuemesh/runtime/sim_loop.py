@@ -59,7 +59,8 @@ class SimRuntime:
         self.costmap = Costmap(self.map.grid)
         for name in starts:
             body = self.world.bodies[name]
-            self.brains[name], stack = assemble_robot(name, body, self.costmap, self.config, self.sealer, starts[name])
+            base = self.map.bases.get(name, starts[name])  # where Return goes: the map's base, else the start
+            self.brains[name], stack = assemble_robot(name, body, self.costmap, self.config, self.sealer, base)
             self.stacks[name] = stack
             self.medium.attach(robot_address(name), stack, _position_of(body))
 

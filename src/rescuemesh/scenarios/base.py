@@ -28,6 +28,10 @@ ROBOTS = ("robot_1", "robot_2", "robot_3")
 OFFICE_MAP_NAME = "small_office"
 #: Two TurtleBot 2 footprints (0.177 m radius each) plus a little room.
 MIN_START_SEPARATION_M = 0.4
+#: A robot with no task, placed automatically, starts at least this far (m) from every other robot.
+IDLE_SEPARATION_M = 1.5
+#: Lattice points looked at beyond the team's size when placing idle robots.
+IDLE_SPARE_CANDIDATES = 12
 #: Room a ground robot needs around its start: the TurtleBot 2 footprint (0.177 m radius, as
 #: sim/mjcf.py CHASSIS_RADIUS) and a few mm. Every grid cell nearer than this must be free.
 START_CLEARANCE_M = 0.18
@@ -108,11 +112,18 @@ class Scenario(abc.ABC):
 
     #: Whether --outage means anything to this scenario.
     takes_outage: ClassVar[bool] = False
+    #: Whether --goal means anything to this scenario (a leader's goal, a Goto pose, a spot to show).
+    takes_goal: ClassVar[bool] = False
     #: Whether --robots N means anything to this scenario (it then sets `robots` from it).
     takes_team_size: ClassVar[bool] = False
     #: Whether the scenario runs with each robot in its own process (--processes): its script and
     #: criteria only read and call brains, never the robots' internals in place.
     runs_as_processes: ClassVar[bool] = False
+    #: Robots with no task in this scenario: on a map with no start for one, it is placed
+    #: automatically (behind robot_1, away from the mission point, clear of the other starts).
+    idle_robots: ClassVar[tuple[str, ...]] = ("robot_3",)
+    #: What the `goal` of this scenario's metrics is, for the star in trajectory.png.
+    goal_label: ClassVar[str] = "leader's goal"
     #: The team of this scenario.
     robots: ClassVar[tuple[str, ...]] = ROBOTS
     #: Robots this scenario adds to the map's starts on the packaged office: name -> (pose, what
@@ -125,6 +136,9 @@ class Scenario(abc.ABC):
         self.map = map_model
         if options.outage_s is not None and not self.takes_outage:
             raise ScenarioError(f"--outage applies to the disconnect scenario, not to {self.name}")
+        if options.goal is not None and not self.takes_goal:
+            raise ScenarioError(f"--goal applies to follow, stop, disconnect, spoof, convoy, goto, return, show-scan "
+                                f"and show-cam, not to {self.name}")
         if options.robots is not None and not self.takes_team_size:
             raise ScenarioError(f"--robots applies to the convoy scenario, not to {self.name} (its team is "
                                 f"{', '.join(self.robots)})")
@@ -178,6 +192,9 @@ class Scenario(abc.ABC):
             if name not in robots:
                 raise ScenarioError(f"unknown robot {name!r}: this scenario has {', '.join(robots)}")
         starts.update(self.options.starts)
+        idle = [name for name in robots if name not in starts and name in self.idle_robots]
+        if idle and all(name in starts or name in idle for name in robots):
+            starts.update(self._place_idle(starts, idle))
         missing = [name for name in robots if name not in starts]
         if missing:
             raise ScenarioError(f"map {self.map.name!r} has no start pose for {', '.join(missing)}: "
@@ -198,6 +215,37 @@ class Scenario(abc.ABC):
                 raise ScenarioError(f"start of {name} ({pose.x:.2f}, {pose.y:.2f}) is {clearance:.2f} m from an "
                                     f"obstacle: a TurtleBot 2 needs {START_CLEARANCE_M:.2f} m")
         return starts
+
+    def mission_point(self) -> Pose2D | None:
+        """Where this scenario's mission heads (a goal, a spot to show): idle robots are placed away
+        from it. None: away from robot_1 only."""
+        return None
+
+    def _place_idle(self, starts: dict[str, Pose2D], idle: list[str]) -> dict[str, Pose2D]:
+        """Start poses for robots with no task and no start: lattice points behind robot_1 as the
+        convoy places its team (scenarios/team.py), at least IDLE_SEPARATION_M from every start."""
+        from rescuemesh.scenarios.team import PlacementError, place_behind
+
+        leader = starts.get("robot_1") or next(iter(starts.values()))
+        point = self.mission_point() or leader
+        try:
+            candidates = place_behind(self.map.grid, leader, (point.x, point.y),
+                                      len(starts) + len(idle) + IDLE_SPARE_CANDIDATES)[1:]
+        except PlacementError:
+            candidates = []
+        placed: dict[str, Pose2D] = {}
+        taken = list(starts.values()) + list(self.map.bases.values())
+        for pose in candidates:
+            if len(placed) == len(idle):
+                break
+            if all(pose.distance_to(other) >= IDLE_SEPARATION_M for other in taken):
+                placed[idle[len(placed)]] = pose
+                taken.append(pose)
+        if len(placed) < len(idle):
+            names = ", ".join(name for name in idle if name not in placed)
+            raise ScenarioError(f"map {self.map.name!r}: no room found for {names} (no task here) behind robot_1: "
+                                f"give --start NAME=X,Y,YAW")
+        return placed
 
     def write_files(self, rt: SimRuntime, out_dir) -> list:
         """Files of the scenario's own beside result.json and the plots (received scans, images)."""
@@ -260,11 +308,25 @@ def no_collisions(rt: SimRuntime) -> tuple[str, bool]:
 
 
 def mean_distance(a: list[TrajectorySample], b: list[TrajectorySample], t0: float, t1: float) -> float:
-    """Mean distance in m between two robots' recorded positions over [t0, t1] s."""
+    """Mean centre-to-centre distance in m between two robots' recorded positions (one sample per
+    control step) over [t0, t1] s."""
     pairs = [(p.pose, q.pose) for p, q in zip(a, b) if t0 <= p.time_s <= t1]
     if not pairs:
         return math.nan
     return sum(p.distance_to(q) for p, q in pairs) / len(pairs)
+
+
+def following_error(a: list[TrajectorySample], b: list[TrajectorySample], t0: float, t1: float,
+                    set_distance_m: float) -> dict | None:
+    """How far follower `b` kept from leader `a` against the set following distance, over the
+    samples in [t0, t1] s: centre-to-centre distance minus `set_distance_m`, as its mean (signed:
+    positive is lagging), RMS and largest value, in m; None with no sample in the window."""
+    errors = [p.pose.distance_to(q.pose) - set_distance_m for p, q in zip(a, b) if t0 <= p.time_s <= t1]
+    if not errors:
+        return None
+    return {"set_distance_m": set_distance_m, "mean_m": round(sum(errors) / len(errors), 3),
+            "rms_m": round(math.sqrt(sum(e * e for e in errors) / len(errors)), 3),
+            "max_m": round(max(errors), 3), "samples": len(errors)}
 
 
 def _last_finished(brain, behaviour: str):

@@ -25,7 +25,8 @@ from functools import cached_property
 
 from rescuemesh.geometry import Pose2D
 from rescuemesh.protocol import ResultCode
-from rescuemesh.scenarios.base import (CommandRequest, Scenario, ScenarioError, Verdict, last_result, mean_distance,
+from rescuemesh.scenarios.base import (CommandRequest, Scenario, ScenarioError, Verdict, following_error,
+                                       last_result, mean_distance,
                                        no_collisions, settled, why_not)
 from rescuemesh.scenarios.team import MAX_TEAM, PlacementError, place_behind, team_names
 
@@ -64,6 +65,7 @@ class ConvoyScenario(Scenario):
                "passage and a doorway into the hall")
     time_limit_s = 400.0
     takes_team_size = True
+    takes_goal = True
 
     def __init__(self, options, map_model) -> None:
         count = DEFAULT_TEAM if options.robots is None else options.robots
@@ -179,11 +181,14 @@ class ConvoyScenario(Scenario):
                          f"{rt.config.brain.follow_distance_m} m; {min(gaps):.2f}-{max(gaps):.2f} m"
                          f"{'; off: ' + _short_list(far) if far else ''})", not far))
         criteria.append(no_collisions(rt))
-        moving_gaps = []
-        if self.formed_s is not None:
+        moving_gaps, errors = [], []
+        if self.formed_s is not None:  # the window: from the chain's forming to the leader's arrival
             t1 = self.arrived_s or rt.time
-            moving_gaps = [mean_distance(rt.trajectories[names[k]], rt.trajectories[names[k + 1]], self.formed_s, t1)
-                           for k in range(len(names) - 1)]
+            paths = [rt.trajectories[name] for name in names]
+            moving_gaps = [mean_distance(paths[k], paths[k + 1], self.formed_s, t1) for k in range(len(names) - 1)]
+            errors = [following_error(paths[k], paths[k + 1], self.formed_s, t1, rt.config.brain.follow_distance_m)
+                      for k in range(len(names) - 1)]
+            errors = [e for e in errors if e is not None]
         metrics = {
             "robots": len(names),
             "chain_formed_s": self.formed_s,
@@ -193,6 +198,7 @@ class ConvoyScenario(Scenario):
             "final_gap_mean_m": round(sum(gaps) / len(gaps), 3),
             "final_gap_max_m": round(max(gaps), 3),
             "mean_following_distance_m": _round_mean(moving_gaps),
+            "following_error_m": _pooled_error(errors),
             "goal_room": room,
             "final_gaps_m": [round(g, 3) for g in gaps],
             "goal": [route[-1].x, route[-1].y],
@@ -202,6 +208,17 @@ class ConvoyScenario(Scenario):
 
 def _short_list(items: list[str], limit: int = 4) -> str:
     return ", ".join(items[:limit]) + (f" and {len(items) - limit} more" if len(items) > limit else "")
+
+
+def _pooled_error(errors: list[dict]) -> dict | None:
+    """following_error over every link at once (each link's samples weigh as many as they are)."""
+    n = sum(e["samples"] for e in errors)
+    if not n:
+        return None
+    return {"set_distance_m": errors[0]["set_distance_m"],
+            "mean_m": round(sum(e["mean_m"] * e["samples"] for e in errors) / n, 3),
+            "rms_m": round(math.sqrt(sum(e["rms_m"] ** 2 * e["samples"] for e in errors) / n), 3),
+            "max_m": max(e["max_m"] for e in errors), "samples": n, "links": len(errors)}
 
 
 def _round_mean(values: list[float]):

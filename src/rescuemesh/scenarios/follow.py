@@ -10,8 +10,8 @@ from typing import TYPE_CHECKING
 
 from rescuemesh.geometry import Pose2D
 from rescuemesh.protocol import ResultCode
-from rescuemesh.scenarios.base import (CommandRequest, Scenario, ScenarioError, Verdict, last_result, mean_distance,
-                                       no_collisions, settled, why_not)
+from rescuemesh.scenarios.base import (CommandRequest, Scenario, ScenarioError, Verdict, following_error,
+                                       last_result, mean_distance, no_collisions, settled, why_not)
 
 if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJoCo
     from rescuemesh.runtime.sim_loop import SimRuntime
@@ -26,9 +26,13 @@ class FollowScenario(Scenario):
     time_limit_s = 120.0
     leader, follower = "robot_1", "robot_2"
     runs_as_processes = True
+    takes_goal = True
 
     def validate(self) -> None:
         self.require_free("goal", self.goal())
+
+    def mission_point(self) -> Pose2D:
+        return self.goal()
 
     def goal(self) -> Pose2D:
         if self.options.goal is not None:
@@ -85,13 +89,17 @@ class FollowScenario(Scenario):
             criteria.append((f"follower ends within {FOLLOWER_END_DISTANCE_M} m of the leader ({gap:.2f} m)",
                              gap <= FOLLOWER_END_DISTANCE_M))
         criteria.append(no_collisions(rt))
-        following = None
-        if self.accepted_s is not None:
-            following = _round(mean_distance(rt.trajectories[self.leader], rt.trajectories[self.follower],
-                                             self.accepted_s, self.arrived_s or rt.time))
+        following = error = None
+        if self.accepted_s is not None:  # the window: from the Follow's ACCEPTED to the leader's arrival
+            leader_path, follower_path = rt.trajectories[self.leader], rt.trajectories[self.follower]
+            window_end = self.arrived_s or rt.time
+            following = _round(mean_distance(leader_path, follower_path, self.accepted_s, window_end))
+            error = following_error(leader_path, follower_path, self.accepted_s, window_end,
+                                    rt.config.brain.follow_distance_m)
         metrics = {
             "follower_passed_doorway": passed_doorway,
             "mean_following_distance_m": following,
+            "following_error_m": error,
             "final_gap_m": round(leader_end.distance_to(follower_end), 3),
             "follow_accepted_s": self.accepted_s,
             "leader_arrived_s": self.arrived_s,

@@ -19,6 +19,17 @@ if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJo
 #: Where robot_2 is sent on the office: room_south, east of its table, facing north.
 OFFICE_GOTO = Pose2D(12.6, 2.4, math.pi / 2)
 XY_TOLERANCE_M, YAW_TOLERANCE_RAD = 0.15, 0.3
+#: The map's named goal (map YAML `goals:`) robot_2 is sent to when no --goal is given.
+MAP_GOAL = "goto"
+
+
+def _pose_at(samples, time_s: float | None) -> Pose2D:
+    """The pose of the first trajectory sample at or after `time_s` (the last one for None or later)."""
+    if time_s is not None:
+        for sample in samples:
+            if sample.time_s >= time_s:
+                return sample.pose
+    return samples[-1].pose
 
 
 def _angle(a: float, b: float) -> float:
@@ -28,16 +39,24 @@ def _angle(a: float, b: float) -> float:
 class GotoScenario(Scenario):
     name = "goto"
     runs_as_processes = True
+    takes_goal = True
     summary = "robot_1 sends robot_2 a Goto for a pose in another room; progress, then DONE at the pose"
     time_limit_s = 120.0
     sender, mover = "robot_1", "robot_2"
+    goal_label = "robot_2's Goto target"
+
+    def mission_point(self) -> Pose2D:
+        return self.goal()
 
     def goal(self) -> Pose2D:
         if self.options.goal is not None:
             return self.options.goal
         if self.on_office:
             return OFFICE_GOTO
-        raise ScenarioError(f"map {self.map.name!r} has no default Goto pose: give --goal X,Y")
+        if MAP_GOAL in self.map.goals:
+            return self.map.goals[MAP_GOAL]
+        raise ScenarioError(f"map {self.map.name!r} has no default Goto pose (goals: {MAP_GOAL}): "
+                            f"give --goal X,Y[,YAW]")
 
     def validate(self) -> None:
         self.require_free("goal", self.goal())
@@ -73,7 +92,8 @@ class GotoScenario(Scenario):
 
     def evaluate(self, rt: SimRuntime) -> Verdict:
         goal = self.goal()
-        end = rt.trajectories[self.mover][-1].pose
+        # the Goto's own error: where the mover was when DONE arrived (the run's end without one)
+        end = _pose_at(rt.trajectories[self.mover], self.goto_done_s)
         error_m, error_rad = end.distance_to(goal), _angle(end.yaw, goal.yaw)
         sent = self._outcome(rt, self._goto)
         reports = self._progress_reports(rt)
@@ -127,7 +147,7 @@ class ReturnScenario(GotoScenario):
 
     def evaluate(self, rt: SimRuntime) -> Verdict:
         away = super().evaluate(rt)
-        base = rt.trajectories[self.mover][0].pose
+        base = self.map.bases.get(self.mover, rt.trajectories[self.mover][0].pose)  # as the runtime sets it
         end = rt.trajectories[self.mover][-1].pose
         error_m, error_rad = end.distance_to(base), _angle(end.yaw, base.yaw)
         sent = self._outcome(rt, self._return)
@@ -137,6 +157,11 @@ class ReturnScenario(GotoScenario):
                      f"({error_m:.3f} m, {error_rad:.3f} rad)",
                      error_m <= XY_TOLERANCE_M and error_rad <= YAW_TOLERANCE_RAD),
                     no_collisions(rt)]
-        metrics = dict(away.metrics, base=[round(base.x, 3), round(base.y, 3)], return_done_s=self.return_done_s,
-                       base_error_m=round(error_m, 3), base_yaw_error_rad=round(error_rad, 3))
+        metrics = {k: v for k, v in away.metrics.items() if k not in ("final_error_m", "final_yaw_error_rad")}
+        # final_error_m is the Return's own (this used to be the Goto's error measured after the
+        # robot had gone home); the Goto's is goto_error_m, taken when its DONE arrived
+        metrics.update(goto_error_m=away.metrics["final_error_m"],
+                       goto_yaw_error_rad=away.metrics["final_yaw_error_rad"],
+                       base=[round(base.x, 3), round(base.y, 3)], return_done_s=self.return_done_s,
+                       final_error_m=round(error_m, 3), final_yaw_error_rad=round(error_rad, 3))
         return Verdict(all(ok for _, ok in criteria), criteria, metrics)

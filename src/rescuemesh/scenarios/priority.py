@@ -35,6 +35,7 @@ class PriorityScenario(Scenario):
     summary = "a peer's Goto is TEMPORARILY_REJECTED during a team lead's Follow; the operator's preempts it"
     time_limit_s = 90.0
     robots = ("robot_1", "robot_2", "robot_3", "robot_4")
+    idle_robots = ()
     office_extra_starts = {"robot_4": (OFFICE_STATION, "the operator station")}
 
     def sim_config(self) -> SimConfig:

@@ -39,6 +39,7 @@ class RelayScenario(Scenario):
     summary = "robot_1 in the hall sends Follow to robot_3 in a far room; robot_2 relays; robot_3 comes and follows"
     time_limit_s = 180.0
     leader, relay, follower = "robot_1", "robot_2", "robot_3"
+    idle_robots = ()
 
     def default_starts(self) -> dict[str, Pose2D]:
         if self.on_office:

@@ -87,7 +87,8 @@ def run_scenario(name: str | None, options: ScenarioOptions, *, map_path: Path |
             out_dir.mkdir(parents=True, exist_ok=True)
             files.append(write_result(result, out_dir / "result.json"))
             files.append(plot_trajectories(rt, map_model, out_dir / "trajectory.png",
-                                           title=_title(scenario, verdict), metrics=verdict.metrics))
+                                           title=_title(scenario, verdict), metrics=verdict.metrics,
+                                           goal_label=scenario.goal_label))
             files.append(plot_timeline(rt, out_dir / "timeline.png", title=_title(scenario, verdict),
                                        metrics=verdict.metrics))
             files.extend(scenario.write_files(rt, out_dir))

@@ -22,6 +22,8 @@ if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJo
 #: In room_north, out of robot_2's sight from its start in the hall (the hall's east wall is between).
 OFFICE_TARGET = Pose2D(11.3, 7.6, 0.0)
 COUNT, PERIOD_S = 3, 1.0
+#: The map's named goal (map YAML `goals:`) used as the spot when no --goal is given.
+MAP_GOAL = "show"
 #: Images are larger: one every 3 s, so that each has the link to itself (docs/sensors.md).
 CAM_PERIOD_S = 3.0
 MIN_MOVE_M = 0.5
@@ -32,18 +34,25 @@ LATE_DATA_S = 10.0
 class ShowScanScenario(Scenario):
     name = "show-scan"
     runs_as_processes = True
+    takes_goal = True
     summary = "robot_1 asks robot_2 for 3 scans of a spot around a corner; robot_2 moves to see it and sends them"
     time_limit_s = 120.0
     asker, sensor = "robot_1", "robot_2"
     kind = DataKind.LASER_SCAN
     folder = "scans"
 
+    def mission_point(self) -> Pose2D:
+        return self.target()
+
     def target(self) -> Pose2D:
         if self.options.goal is not None:
             return self.options.goal
         if self.on_office:
             return OFFICE_TARGET
-        raise ScenarioError(f"map {self.map.name!r} has no default position to look at: give --goal X,Y")
+        if MAP_GOAL in self.map.goals:
+            return self.map.goals[MAP_GOAL]
+        raise ScenarioError(f"map {self.map.name!r} has no default position to look at (goals: {MAP_GOAL}): "
+                            f"give --goal X,Y")
 
     def validate(self) -> None:
         self.require_free("position", self.target())
@@ -129,7 +138,8 @@ class ShowScanScenario(Scenario):
             from rescuemesh.report.sensors import draw_scan_png  # matplotlib: only to write files
 
             paths.append(draw_scan_png(scan, self.map, folder / f"scan_{k}.png",
-                                       title=f"scan {k} from robot_2, received at {item[0]:.2f} s ({len(item[4])} B)"))
+                                       title=f"scan {k} from robot_2, received at {item[0]:.2f} s ({len(item[4])} B)",
+                                       spot=(self.target().x, self.target().y)))
         return paths
 
 

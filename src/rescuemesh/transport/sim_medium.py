@@ -102,7 +102,9 @@ class MediumStats:
     """Counts over the whole run. A transmission is one frame put on the air by one radio (an
     original, a relay or a segment); a reception is one transmission at one other radio that could
     hear it, or at its intended receiver (the destination, or every radio for a broadcast) even
-    when that one could not (counted lost out of range or radio off)."""
+    when that one could not (counted lost out of range or radio off). `unicast_*` and
+    `broadcast_*` count the source's own transmissions (first sends and resends) at their intended
+    receivers; `relayed_*` the relays' copies at theirs (a relayed copy is not a unicast delivery)."""
 
     transmissions: int = 0
     relayed_transmissions: int = 0
@@ -117,6 +119,8 @@ class MediumStats:
     unicast_lost: int = 0
     broadcast_delivered: int = 0
     broadcast_lost: int = 0
+    relayed_delivered: int = 0
+    relayed_lost: int = 0
 
     @property
     def collisions(self) -> int:
@@ -138,6 +142,8 @@ class MediumStats:
             "unicast_lost": self.unicast_lost,
             "broadcast_delivered": self.broadcast_delivered,
             "broadcast_lost": self.broadcast_lost,
+            "relayed_delivered": self.relayed_delivered,
+            "relayed_lost": self.relayed_lost,
         }
 
 
@@ -145,7 +151,8 @@ class MediumStats:
 class AirRecord:
     """One transmission, for timelines: on the air over [start_s, end_s] from `transmitter`.
     `dst_heard`: whether the destination received this very transmission (None for a broadcast);
-    `heard_by`: how many radios received it; `collided`: whether a collision spoiled any reception."""
+    `heard_by`: how many radios received it; `collided`: whether a collision spoiled any reception;
+    `seq`: the source's sequence number of the message (its sends, relays and segments share it)."""
 
     start_s: float
     end_s: float
@@ -159,6 +166,7 @@ class AirRecord:
     dst_heard: bool | None = None
     heard_by: int = 0
     collided: bool = False
+    seq: int = -1
 
 
 class _Event(IntEnum):
@@ -366,7 +374,8 @@ class SimMedium:
         if self.records is not None:
             record = AirRecord(start, end, radio.address, transmission.src, transmission.dst,
                                transmission.msg_type, transmission.relayed, transmission.segment,
-                               transmission.data, None if transmission.dst == BROADCAST else False)
+                               transmission.data, None if transmission.dst == BROADCAST else False,
+                               seq=transmission.seq)
             self.records.append(record)
         burst = _Burst(transmission, radio, start, end, record)
         sender_xy = self._position(radio)
@@ -467,12 +476,19 @@ class SimMedium:
             stats.receptions_delivered += 1
         else:
             stats.receptions_lost[lost.value] += 1
-        if transmission.dst == BROADCAST:
+        if transmission.dst != BROADCAST and transmission.dst != receiver.address:
+            return
+        if transmission.relayed:
+            if lost is None:
+                stats.relayed_delivered += 1
+            else:
+                stats.relayed_lost += 1
+        elif transmission.dst == BROADCAST:
             if lost is None:
                 stats.broadcast_delivered += 1
             else:
                 stats.broadcast_lost += 1
-        elif transmission.dst == receiver.address:
+        else:
             if lost is None:
                 stats.unicast_delivered += 1
             else:
