@@ -82,11 +82,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--exit-when-done", action="store_true",
                    help="exit when the mission is over, or (no mission) when a commanded behaviour has ended")
     p.add_argument("--json-out", default=None, metavar="FILE", help="write a report of the run here")
-    p.add_argument("--body", choices=["kinematic", "ros1"], default="kinematic",
+    p.add_argument("--body", choices=["kinematic", "ros1", "ros2"], default="kinematic",
                    help="kinematic: a simulated unicycle (default); ros1: a ROS 1 robot's /ROBOT/odom, /ROBOT/scan "
-                        "and /ROBOT/cmd_vel, with the paper's topics (docs/ros1.md)")
+                        "and /ROBOT/cmd_vel, with the paper's topics (docs/ros1.md); ros2: the same on ROS 2, this "
+                        "process a ROS 2 node in namespace /ROBOT, with the SendCommand action (docs/ros2.md)")
     p.add_argument("--odometry-wait", type=float, default=10.0, metavar="S",
-                   help="--body ros1: how long to wait for the first odometry (default 10 s)")
+                   help="--body ros1/ros2: how long to wait for the first odometry (default 10 s)")
+    from rescuemesh.runtime.ros_options import add_ros_arguments
+
+    add_ros_arguments(p)  # topic names, pose source, laser mount, limits; then `--ros-args ...` for ros2
     return p
 
 
@@ -107,11 +111,33 @@ def build_ros1_robot(options: dict):
     from rescuemesh.runtime.ros1_body import Ros1Body, init_node
     from rescuemesh.runtime.ros1_paper import Ros1Paper
 
+    from rescuemesh.runtime.ros_options import ros1_body_kwargs
+
     name = options["name"]
     init_node(f"rescuemesh_{name}")
-    body = Ros1Body(name, odometry_wait_s=options["odometry_wait"])
+    body = Ros1Body(name, odometry_wait_s=options["odometry_wait"], **ros1_body_kwargs(options["ros"]))
     brain, stack = _software(name, body, options["config"], _grid(options["grid"]), body.pose())
     return body, brain, stack, Ros1Paper(brain)
+
+
+def build_ros2_robot(options: dict):
+    """A ROS 2 robot: this process a ROS 2 node (runtime/ros2_body.py), its body, brain, stack and the
+    paper's topics and action: (body, brain, stack, paper). Raises Ros2Unavailable, Ros2MsgsUnavailable
+    or NoOdometryError (one line each); the node is closed again when it fails."""
+    from rescuemesh.runtime.ros2_body import Ros2Body, Ros2Node
+    from rescuemesh.runtime.ros2_paper import Ros2Paper
+    from rescuemesh.runtime.ros_options import ros2_body_kwargs
+
+    name, grid = options["name"], _grid(options["grid"])
+    ros = Ros2Node(name, namespace=options["ros"]["namespace"], ros_args=options["ros_args"])
+    try:
+        body = Ros2Body(ros, name, odometry_wait_s=options["odometry_wait"], **ros2_body_kwargs(options["ros"]))
+        brain, stack = _software(name, body, options["config"], grid, body.pose())
+        paper = Ros2Paper(brain, ros, on_map=lambda x, y: not grid.is_occupied(x, y))
+    except BaseException:
+        ros.close()
+        raise
+    return body, brain, stack, paper
 
 
 def build_robot(name: str, start: Pose2D, config: SimConfig, clock: Callable[[], float],
@@ -246,19 +272,32 @@ def main(argv: Sequence[str] | None = None, *, out: TextIO | None = None, err: T
     out = out if out is not None else sys.stdout
     err = err if err is not None else sys.stderr
     try:
-        options = _options(build_parser().parse_args(list(sys.argv[1:] if argv is None else argv)))
+        from rescuemesh.runtime.ros_options import split_ros_args
+
+        argv, ros_args = split_ros_args(sys.argv[1:] if argv is None else argv)
+        options = _options(build_parser().parse_args(argv))
+        if ros_args and options["body"] != "ros2":
+            raise UsageError("--ros-args is for --body ros2")
+        options["ros_args"] = ros_args
     except (UsageError, ValueError) as exc:
         print(f"rescuemesh robot: error: {exc}", file=err)
         return 2
     import zenoh
 
     paper = None
-    if options["body"] == "ros1":
+    if options["body"] in ("ros1", "ros2"):
         try:
-            body, brain, stack, paper = build_ros1_robot(options)
-        except (ImportError, RuntimeError) as exc:  # Ros1Unavailable, NoOdometryError: one line
+            build = build_ros1_robot if options["body"] == "ros1" else build_ros2_robot
+            body, brain, stack, paper = build(options)
+        except (ImportError, RuntimeError) as exc:  # Ros1/2Unavailable, NoOdometryError: one line
             print(f"rescuemesh robot: error: {str(exc).splitlines()[0]}", file=err)
             return 2
+        from rescuemesh.runtime.ros_options import map_frame_warning
+
+        warning = map_frame_warning(options["name"], options["ros"], getattr(body, "resolved", {}).get(
+            "odom", getattr(getattr(body, "topics", None), "odom", "odom")))
+        if warning is not None:
+            print(warning, file=err)
         clock = body.now
     else:
         clock = monotonic_from_zero()
@@ -292,6 +331,10 @@ def main(argv: Sequence[str] | None = None, *, out: TextIO | None = None, err: T
         closing = time.monotonic()
         closed = link.close()
         close_s = time.monotonic() - closing
+        if options["body"] == "ros2":  # a zero Twist waited for, then the node leaves the graph
+            body.close()
+            paper.close()
+            body.ros.close()
     report = _report(options, brain, stack, body, link, loop, mission, trajectory)
     report["link_close"] = {"clean": closed, "took_s": round(close_s, 3)}
     if options["json_out"] is not None:
@@ -305,6 +348,8 @@ def main(argv: Sequence[str] | None = None, *, out: TextIO | None = None, err: T
 
 
 def _options(args: argparse.Namespace) -> dict:
+    from rescuemesh.runtime.ros_options import ros_body_options
+
     robot_address(args.name)  # ValueError: unknown robot
     for endpoint in args.listen + args.connect:
         check_endpoint(endpoint)
@@ -349,7 +394,7 @@ def _options(args: argparse.Namespace) -> dict:
     return {"name": args.name, "listen": args.listen, "connect": args.connect, "team": args.team, "config": config,
             "start": start, "goal": goal, "follower": follower, "duration": args.duration, "grid": grid,
             "exit_when_done": args.exit_when_done, "json_out": args.json_out, "linger": args.linger,
-            "body": args.body, "odometry_wait": args.odometry_wait}
+            "body": args.body, "odometry_wait": args.odometry_wait, "ros": ros_body_options(args, UsageError)}
 
 
 def _on_signals(stop: Callable[[], None]) -> Callable[[], None]:
