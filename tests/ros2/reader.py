@@ -13,6 +13,7 @@ import time
 
 import rclpy
 from geometry_msgs.msg import PoseStamped
+from rclpy.qos import DurabilityPolicy, QoSProfile
 from rclpy.signals import SignalHandlerOptions
 from rescuemesh_msgs.msg import Command
 
@@ -44,15 +45,23 @@ def main() -> int:
     signal.signal(signal.SIGINT, lambda *_: stop.append(1))
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node("paper_reader")
-    for spec in args.topics:
-        topic, kind = spec.rsplit(":", 1)
+    topics = [spec.rsplit(":", 1) for spec in args.topics]
+    for topic, kind in topics:
+        # transient local: what the robot published before this reader was discovered comes too
+        qos = QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL if kind == "Command" else
+                         DurabilityPolicy.VOLATILE)
         node.create_subscription(TYPES[kind], topic,
                                  lambda msg, topic=topic: print(f"# {topic}\n{message_to_yaml(msg)}---", flush=True),
-                                 100)
+                                 qos)
     print("reader: subscribed", flush=True)
     started = time.monotonic()
+    seen = set()
     while not stop and time.monotonic() - started < args.lifetime:
         rclpy.spin_once(node, timeout_sec=0.1)
+        for topic, _ in topics:
+            if topic not in seen and node.count_publishers(topic) > 0:
+                seen.add(topic)
+                print(f"reader: publisher on {topic}", flush=True)
     node.destroy_node()
     rclpy.shutdown()
     return 0

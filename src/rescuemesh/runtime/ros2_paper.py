@@ -28,6 +28,8 @@ from rescuemesh.runtime.ros2_msgs import import_messages
 INTERIM = frozenset({ResultCode.ACCEPTED, ResultCode.IN_PROGRESS})
 #: The action's result when this robot refused the request itself, and when the protocol gave it up.
 REFUSED, NO_ANSWER = "REFUSED", "NO_ANSWER"
+#: Messages of the command topic kept for subscribers that join late (transient local durability).
+COMMAND_HISTORY = 100
 
 
 def open_ended(request: Request) -> bool:
@@ -63,6 +65,7 @@ class Ros2Paper:
         from geometry_msgs.msg import PoseStamped
         from rclpy.action import ActionServer, CancelResponse, GoalResponse
         from rclpy.callback_groups import ReentrantCallbackGroup
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
         self.Command, self.SendCommand = import_messages()
         self._pose_stamped = PoseStamped
@@ -75,7 +78,10 @@ class Ros2Paper:
         self.requests_refused = 0
         self._requests: queue.SimpleQueue = queue.SimpleQueue()  # Request or Ticket
         self._active: dict[tuple[int, int], Ticket] = {}  # (receiver, seq) -> ticket (runtime thread)
-        self._commands = node.create_publisher(self.Command, "comm_protocol/command", 100)
+        # the record keeps its latest 100 for late joiners (a recorder, `ros2 topic echo --qos-durability
+        # transient_local`), as a latched ROS 1 topic; a volatile subscriber matches it too
+        self._commands = node.create_publisher(self.Command, "comm_protocol/command", QoSProfile(
+            depth=COMMAND_HISTORY, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE))
         self._follow = node.create_publisher(PoseStamped, "comm_protocol/follow", 10)
         self._input = node.create_subscription(self.Command, "comm_protocol/command/input", self._on_input, 100)
         self._action = ActionServer(node, self.SendCommand, "comm_protocol/send_command", self._execute,
