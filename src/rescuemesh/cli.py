@@ -8,6 +8,7 @@ criteria failed, 2 bad input). Must not know: how scenarios or the simulation wo
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import math
 import os
 import sys
@@ -156,6 +157,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="also serve the run's recording on a Foxglove WebSocket on 127.0.0.1 while it runs "
                           "(with --realtime to watch it at its own pace; docs/recording.md)")
     run.add_argument("--live-port", type=int, default=8765, metavar="PORT", help="port of --live (default 8765)")
+    run.add_argument("--rosbag", action="store_true",
+                     help="also write the run as a rosbag2 (MCAP, CDR) folder OUT/run.rosbag2 for ROS 2 tools "
+                          "(docs/ros2.md)")
     world = sub.add_parser("world", parents=[run], add_help=False,
                            help="run a scenario's world and wait for robot processes started by hand")
     world.add_argument("--listen", default="tcp/127.0.0.1:7447", metavar="tcp/HOST:PORT",
@@ -289,6 +293,8 @@ def _run(args) -> int:
         print(f"world {args.scenario}: waiting for robots at {args.listen} (run {args.run_id!r}); start each with\n"
               f"  rescuemesh robot --name robot_N --connect {args.listen}"
               + (f" --run-id {args.run_id}" if args.run_id != "default" else ""), file=sys.stderr)
+    if getattr(args, "rosbag", False) and importlib.util.find_spec("rosbags") is None:
+        raise UsageError("--rosbag needs the rosbags package: pip install 'rescuemesh[sim]'")
     if args.live and not 0 < args.live_port < 65536:
         raise UsageError(f"--live-port must be a port number from 1 to 65535, got {args.live_port}")
     if args.live:
@@ -302,7 +308,8 @@ def _run(args) -> int:
     try:
         outcome = run_scenario(args.scenario, options, map_path=args.map, scenario=scenario, out_dir=out,
                                progress=progress, processes=processes, realtime=args.realtime,
-                               live_port=args.live_port if args.live else None)
+                               live_port=args.live_port if args.live else None,
+                               rosbag=getattr(args, "rosbag", False))
     except ControlError as error:
         if progress:
             progress.clear()
