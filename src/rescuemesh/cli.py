@@ -219,6 +219,13 @@ def _main(argv: list[str] | None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv[:1] == ["robot"] and any(a == "--link" or a.startswith("--link=") for a in argv):
         return _linked_robot(argv[1:])
+    if argv[:1] == ["robot"] and any(a in ("-h", "--help") for a in argv):  # both kinds of robot process
+        from rescuemesh.runtime.linked_robot import build_parser as linked_parser
+
+        robot_parser = build_parser()._subparsers._group_actions[0].choices["robot"]
+        print(robot_parser.format_help() + "\nA robot on a real network (rescuemesh robot --link zenoh|ble ...; "
+              "docs/networks.md, docs/ros1.md, docs/ros2.md):\n\n" + linked_parser().format_help())
+        return EXIT_OK
     try:
         args = build_parser().parse_args(_join_negative_values(argv))
         _require_extra(args.command)
@@ -406,13 +413,13 @@ def _linked_robot(argv: list[str]) -> int:
             link = argv[i + 1] if i + 1 < len(argv) else ""
         elif i == 0 or argv[i - 1] != "--link":
             rest.append(arg)
-    if link != "zenoh":
-        print(f"rescuemesh: error: --link takes zenoh (frames over Zenoh on a real network), got {link!r}",
-              file=sys.stderr)
+    if link not in ("zenoh", "ble"):
+        print(f"rescuemesh: error: --link takes zenoh (frames over Zenoh on a real network) or ble (over a "
+              f"Bluetooth LE controller, --hci SPEC), got {link!r}", file=sys.stderr)
         return EXIT_USAGE
     from rescuemesh.runtime.linked_robot import exit_process, main as linked_main
 
-    exit_process(linked_main(rest))
+    exit_process(linked_main(rest + ["--link", link]))
 
 
 class _Progress:

@@ -58,8 +58,15 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="rescuemesh robot", description="one robot on a real network over Zenoh (KinematicBody)")
+    p = _Parser(prog="rescuemesh robot", description="one robot on a real network: its frames over Zenoh (IP) or "
+                                                     "Bluetooth LE advertising (--link ble --hci SPEC)")
     p.add_argument("--name", required=True, help="robot_N")
+    p.add_argument("--link", choices=["zenoh", "ble"], default="zenoh",
+                   help="zenoh: frames over Zenoh on an IP network (--listen/--connect); ble: over a Bluetooth LE "
+                        "controller as Bluetooth Mesh advertising (--hci; docs/ble.md)")
+    p.add_argument("--hci", default=None, metavar="SPEC",
+                   help="--link ble: the controller, a bumble transport (usb:0, hci-socket:0, "
+                        "serial:/dev/ttyACM0,1000000, tcp-client:127.0.0.1:PORT)")
     p.add_argument("--listen", action="append", default=[], metavar="tcp/IP:PORT", help="endpoint to listen on")
     p.add_argument("--connect", action="append", default=[], metavar="tcp/IP:PORT", help="peer endpoint to connect to")
     p.add_argument("--team", default="team", help="team name: the key expressions' chunk (default team)")
@@ -303,10 +310,19 @@ def main(argv: Sequence[str] | None = None, *, out: TextIO | None = None, err: T
         clock = monotonic_from_zero()
         body, brain, stack = build_robot(options["name"], options["start"], options["config"], clock, options["grid"])
     try:
-        link = ZenohLink.open(options["team"], robot_address(options["name"]),
-                              listen=options["listen"], connect=options["connect"])
+        if options["link"] == "ble":
+            from rescuemesh.runtime.ble_link import BleLink
+
+            link = BleLink.open(options["hci"], name=options["name"])
+        else:
+            link = ZenohLink.open(options["team"], robot_address(options["name"]),
+                                  listen=options["listen"], connect=options["connect"])
     except (zenoh.ZError, ValueError) as exc:
         print(f"rescuemesh robot: error: cannot open the Zenoh session: {str(exc).splitlines()[0]}", file=err)
+        return 2
+    except (ImportError, RuntimeError, TimeoutError) as exc:  # bumble missing, BleSetupError, no answer
+        print(f"rescuemesh robot: error: --link ble: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}",
+              file=err)
         return 2
     mission = Mission(options["follower"], options["goal"], options["linger"]) \
         if options["follower"] is not None or options["goal"] is not None else None
@@ -353,8 +369,14 @@ def _options(args: argparse.Namespace) -> dict:
     robot_address(args.name)  # ValueError: unknown robot
     for endpoint in args.listen + args.connect:
         check_endpoint(endpoint)
-    if not args.listen and not args.connect:
+    if args.link == "zenoh" and not args.listen and not args.connect:
         raise UsageError("give at least one --listen or --connect endpoint (tcp/IP:PORT)")
+    if args.link == "ble" and (args.listen or args.connect):
+        raise UsageError("--listen and --connect are for --link zenoh; --link ble takes --hci SPEC")
+    if args.link == "ble" and not args.hci:
+        raise UsageError("--link ble needs --hci SPEC: the Bluetooth controller (usb:0, hci-socket:0, ...)")
+    if args.hci is not None and args.link != "ble":
+        raise UsageError("--hci is for --link ble")
     check_team(args.team)
     if args.duration is not None and not (args.duration > 0 and math.isfinite(args.duration)):
         raise UsageError(f"--duration must be a positive number of s, got {args.duration}")
@@ -394,7 +416,8 @@ def _options(args: argparse.Namespace) -> dict:
     return {"name": args.name, "listen": args.listen, "connect": args.connect, "team": args.team, "config": config,
             "start": start, "goal": goal, "follower": follower, "duration": args.duration, "grid": grid,
             "exit_when_done": args.exit_when_done, "json_out": args.json_out, "linger": args.linger,
-            "body": args.body, "odometry_wait": args.odometry_wait, "ros": ros_body_options(args, UsageError)}
+            "body": args.body, "odometry_wait": args.odometry_wait, "ros": ros_body_options(args, UsageError),
+            "link": args.link, "hci": args.hci}
 
 
 def _on_signals(stop: Callable[[], None]) -> Callable[[], None]:
