@@ -222,7 +222,8 @@ def _main(argv: list[str] | None) -> int:
     if argv[:1] == ["robot"] and any(a in ("-h", "--help") for a in argv):  # both kinds of robot process
         from rescuemesh.runtime.linked_robot import build_parser as linked_parser
 
-        robot_parser = build_parser()._subparsers._group_actions[0].choices["robot"]
+        robot_parser = next(a for a in build_parser()._actions
+                            if isinstance(a, argparse._SubParsersAction)).choices["robot"]
         print(robot_parser.format_help() + "\nA robot on a real network (rescuemesh robot --link zenoh|ble ...; "
               "docs/networks.md, docs/ros1.md, docs/ros2.md):\n\n" + linked_parser().format_help())
         return EXIT_OK

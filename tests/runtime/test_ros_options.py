@@ -62,3 +62,15 @@ def test_the_map_frame_warning_comes_only_without_a_pose_topic():
     assert "no --pose-topic" in map_frame_warning("robot_2", _ros("--body", "ros2"), "/robot_2/odom")
     assert map_frame_warning("robot_2", _ros("--body", "ros2", "--pose-topic", "amcl_pose"), "/robot_2/odom") is None
     assert _limits(_ros()) == {}
+
+
+def test_rescuemesh_robot_help_lists_every_option_of_both_kinds_of_robot_process(capsys):
+    # this used to show only the world-connected robot's five options
+    from rescuemesh.cli import main as cli_main
+
+    assert cli_main(["robot", "--help"]) == 0
+    text = capsys.readouterr().out
+    for option in ("--run-id", "--link {zenoh,ble}", "--hci SPEC", "--body {kinematic,ros1,ros2}", "--odom-topic",
+                   "--scan-topic", "--cmd-vel-topic", "--pose-topic", "--laser-mount", "--max-linear-speed",
+                   "--max-angular-speed", "--twist-stamped", "--namespace", "--follow", "--exit-when-done"):
+        assert option in text, option

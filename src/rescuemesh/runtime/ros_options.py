@@ -38,9 +38,9 @@ def add_ros_arguments(p: argparse.ArgumentParser) -> None:
                              "ros2 takes ROS 2 names, relative ones in the node's namespace (default /ROBOT: odom -> "
                              "/robot_2/odom), and remapping after --ros-args (-r odom:=/odom, -r __ns:=/tb4, "
                              "-p use_sim_time:=true)")
-    g.add_argument("--odom-topic", default=None, metavar="TOPIC", help="nav_msgs Odometry in (default odom)")
-    g.add_argument("--scan-topic", default=None, metavar="TOPIC", help="sensor_msgs LaserScan in (default scan)")
-    g.add_argument("--cmd-vel-topic", default=None, metavar="TOPIC", help="geometry_msgs Twist out (default cmd_vel)")
+    g.add_argument("--odom-topic", default=None, metavar="TOPIC", help="nav_msgs Odometry in (default ros1 /{robot}/odom, ros2 odom)")
+    g.add_argument("--scan-topic", default=None, metavar="TOPIC", help="sensor_msgs LaserScan in (default ros1 /{robot}/scan, ros2 scan)")
+    g.add_argument("--cmd-vel-topic", default=None, metavar="TOPIC", help="geometry_msgs Twist out (default ros1 /{robot}/cmd_vel, ros2 cmd_vel)")
     g.add_argument("--pose-topic", default=None, metavar="TOPIC",
                    help="pose source: a geometry_msgs PoseWithCovarianceStamped topic in the map frame (AMCL's "
                         "amcl_pose); default: the odometry's pose, its frame taken as the map frame")
