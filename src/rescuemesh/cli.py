@@ -420,7 +420,7 @@ def _linked_robot(argv: list[str]) -> int:
         return EXIT_USAGE
     from rescuemesh.runtime.linked_robot import exit_process, main as linked_main
 
-    exit_process(linked_main(rest + ["--link", link]))
+    exit_process(linked_main(["--link", link, *rest]))  # first: what follows --ros-args is rclpy's
 
 
 class _Progress:
