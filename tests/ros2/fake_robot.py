@@ -22,6 +22,7 @@ import rclpy
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 from rclpy.qos import qos_profile_sensor_data
+from rosgraph_msgs.msg import Clock
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import LaserScan
 
@@ -38,6 +39,8 @@ def main() -> int:
     parser.add_argument("--cmd-timeout", type=float, default=0.5, help="stop when cmd_vel is older than this, s")
     parser.add_argument("--twist-stamped", action="store_true", help="take TwistStamped on cmd_vel")
     parser.add_argument("--odom-topic", default=None, help="default /NAME/odom")
+    parser.add_argument("--clock-rate", type=float, default=None,
+                        help="publish /clock (simulated time from 1000 s, this many simulated s per wall s), as Gazebo")
     args = parser.parse_args()
     x, y, yaw = (float(v) for v in args.start.split(","))
     stop = []
@@ -55,6 +58,7 @@ def main() -> int:
                    stamped=cmd["stamped"] + args.twist_stamped)
 
     node.create_subscription(TwistStamped if args.twist_stamped else Twist, f"/{args.name}/cmd_vel", on_cmd, 10)
+    clock_pub = node.create_publisher(Clock, "/clock", 10) if args.clock_rate else None
     started = last = time.monotonic()
     tick = 0
     path_length = 0.0
@@ -82,6 +86,10 @@ def main() -> int:
         path_length += abs(v) * dt
         tick += 1
         stamp = node.get_clock().now().to_msg()
+        if clock_pub is not None:  # simulated time: the physics still steps on the wall clock, time runs slower
+            sim_ns = int((1000.0 + (now - started) * args.clock_rate) * 1e9)
+            stamp.sec, stamp.nanosec = sim_ns // 1_000_000_000, sim_ns % 1_000_000_000
+            clock_pub.publish(Clock(clock=stamp))
         if tick % (PHYSICS_HZ // ODOM_HZ) == 0:
             odom = Odometry()
             odom.header.stamp, odom.header.frame_id, odom.child_frame_id = stamp, "odom", "base_footprint"

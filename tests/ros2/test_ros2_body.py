@@ -2,7 +2,9 @@
 process): the robot process drives it to a goal over real rclpy topics, and its wheels stop however the
 robot process ends (a zero Twist on the way out; the base's own cmd_vel timeout after a SIGKILL)."""
 
+import json
 import signal
+import time
 
 import pytest
 
@@ -37,6 +39,20 @@ def test_remapped_topics_twist_stamped_and_flags_reach_the_ros2_body(ros2):
     state = ros2.state("robot_3")
     assert state["x"] > 1.0 and state["stamped"] > 0, state  # it drove on TwistStamped alone
     assert "(/tb/odom)" in robot.stderr()  # the remapped name is the one it read
+
+
+def test_use_sim_time_steps_the_brain_on_the_clock_topic(ros2):
+    # a Gazebo-like robot whose /clock runs at half the wall clock's pace
+    ros2.fake_robot("robot_7", "0,0,0", "--clock-rate", "0.5")
+    ros2.wait_robots("robot_7")
+    report = ros2.workdir / "robot_7.json"
+    began = time.monotonic()
+    robot = ros2.robot("robot_7", "--listen", _listen(), "--duration", "6", "--json-out", str(report),
+                       "--ros-args", "-p", "use_sim_time:=true")
+    assert robot.wait(60) == 0, robot.stdout()[-2000:] + robot.stderr()[-2000:]
+    wall_s = time.monotonic() - began
+    ran_s = json.loads(report.read_text())["ran_s"]
+    assert 5.9 < ran_s < 6.5 and wall_s > 11.0, (ran_s, wall_s)  # 6 s of /clock took 12 s of wall time
 
 
 def _driving(ros2, name: str):
