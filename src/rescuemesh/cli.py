@@ -8,6 +8,7 @@ criteria failed, 2 bad input). Must not know: how scenarios or the simulation wo
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import math
 import os
 import sys
@@ -161,6 +162,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="also serve the run's recording on a Foxglove WebSocket on 127.0.0.1 while it runs "
                           "(with --realtime to watch it at its own pace; docs/recording.md)")
     run.add_argument("--live-port", type=int, default=8765, metavar="PORT", help="port of --live (default 8765)")
+    run.add_argument("--rosbag", action="store_true",
+                     help="also write the run as a rosbag2 (MCAP, CDR) folder OUT/run.rosbag2 for ROS 2 tools "
+                          "(docs/ros2.md)")
     world = sub.add_parser("world", parents=[run], add_help=False,
                            help="run a scenario's world and wait for robot processes started by hand")
     world.add_argument("--listen", default="tcp/127.0.0.1:7447", metavar="tcp/HOST:PORT",
@@ -226,8 +230,14 @@ def _main(argv: list[str] | None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv[:1] == ["robot"] and any(a == "--link" or a.startswith("--link=") for a in argv):
         return _linked_robot(argv[1:])
-    if argv[:1] == ["robot"] and any(a in ("-h", "--help") for a in argv[1:]):
-        return _robot_help()
+    if argv[:1] == ["robot"] and any(a in ("-h", "--help") for a in argv):  # both kinds of robot process
+        from rescuemesh.runtime.linked_robot import build_parser as linked_parser
+
+        robot_parser = next(a for a in build_parser()._actions
+                            if isinstance(a, argparse._SubParsersAction)).choices["robot"]
+        print(robot_parser.format_help() + "\nA robot on a real network (rescuemesh robot --link zenoh|ble ...; "
+              "docs/networks.md, docs/ros1.md, docs/ros2.md):\n\n" + linked_parser().format_help())
+        return EXIT_OK
     try:
         args = build_parser().parse_args(_join_negative_values(argv))
         _require_extra(args.command)
@@ -324,6 +334,8 @@ def _run(args) -> int:
         print(f"world {args.scenario}: waiting for robots at {args.listen} (run {args.run_id!r}); start each with\n"
               f"  rescuemesh robot --name robot_N --connect {args.listen}"
               + (f" --run-id {args.run_id}" if args.run_id != "default" else ""), file=sys.stderr)
+    if getattr(args, "rosbag", False) and importlib.util.find_spec("rosbags") is None:
+        raise UsageError("--rosbag needs the rosbags package: pip install 'rescuemesh[sim]'")
     if args.live and not 0 < args.live_port < 65536:
         raise UsageError(f"--live-port must be a port number from 1 to 65535, got {args.live_port}")
     if args.live:
@@ -339,7 +351,8 @@ def _run(args) -> int:
     try:
         outcome = run_scenario(name, options, map_path=args.map, scenario=scenario, out_dir=out,
                                progress=progress, processes=processes, realtime=args.realtime,
-                               live_port=args.live_port if args.live else None)
+                               live_port=args.live_port if args.live else None,
+                               rosbag=getattr(args, "rosbag", False))
     except ControlError as error:
         if progress:
             progress.clear()
@@ -424,20 +437,6 @@ def _robot(args) -> int:
         return EXIT_FAILED
 
 
-def _robot_help() -> int:
-    """`rescuemesh robot --help`: the options of both kinds of robot process (this used to list the
-    --link zenoh options only when --link zenoh came before --help)."""
-    parser = build_parser()
-    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    print(sub.choices["robot"].format_help())
-    from rescuemesh.runtime.linked_robot import build_parser as linked_parser
-
-    linked = linked_parser()
-    linked.prog = "rescuemesh robot --link zenoh"
-    print(linked.format_help())
-    return 0
-
-
 def _linked_robot(argv: list[str]) -> int:
     """`rescuemesh robot --link zenoh ...`: a robot on a real network, its frames over Zenoh with no
     simulated channel (runtime/linked_robot.py, docs/networks.md). Ends the process itself: a Zenoh
@@ -450,13 +449,13 @@ def _linked_robot(argv: list[str]) -> int:
             link = argv[i + 1] if i + 1 < len(argv) else ""
         elif i == 0 or argv[i - 1] != "--link":
             rest.append(arg)
-    if link != "zenoh":
-        print(f"rescuemesh: error: --link takes zenoh (frames over Zenoh on a real network), got {link!r}",
-              file=sys.stderr)
+    if link not in ("zenoh", "ble"):
+        print(f"rescuemesh: error: --link takes zenoh (frames over Zenoh on a real network) or ble (over a "
+              f"Bluetooth LE controller, --hci SPEC), got {link!r}", file=sys.stderr)
         return EXIT_USAGE
     from rescuemesh.runtime.linked_robot import exit_process, main as linked_main
 
-    exit_process(linked_main(rest))
+    exit_process(linked_main(["--link", link, *rest]))  # first: what follows --ros-args is rclpy's
 
 
 class _Progress:

@@ -471,20 +471,48 @@ def test_percentile_interpolates_between_ranks():
 
 def test_the_default_stack_is_the_mesh_network_stack_and_its_relays_carry_a_lost_frame():
     # robot_2's radio misses robot_1's first Follow; robot_3's mesh node relays it, so no resend is needed
+    from rescuemesh.mesh.security import FrameSealer
+
     class DropsFirst(NetworkStack):
         missed = False
 
         def receive(self, data, now, **kw):
-            if not self.missed:
+            # the first frame of robot_1 (source: header byte 2, in the clear) that is not a Heartbeat of
+            # the warm-up: its Follow, first heard from robot_1 itself; robot_3's relayed copy comes after
+            if not self.missed and data[2] == 1 and FrameSealer.heartbeat_epoch(data) is None:
                 self.missed = True
                 return
             super().receive(data, now, **kw)
 
+    made = []
+
     def make_stack(address):
         stack = default_stack(address)
-        return DropsFirst(stack.endpoint, stack.node) if address == 2 else stack
+        if address == 2:
+            made.append(DropsFirst(stack.endpoint, stack.node))
+            return made[-1]
+        return stack
 
     assert isinstance(default_stack(1), NetworkStack)
     report = run(run_ble_check(updates=1, timeout_s=5.0, make_stack=make_stack))
     assert report.passed, report.summary()
-    assert report.resends == 0
+    assert made[0].missed and report.resends == 0
+
+
+def test_ble_check_frames_are_authenticated_a_robot_with_another_key_is_never_heard():
+    # this used to run unauthenticated: any radio could command the check's robots
+    from rescuemesh.mesh import MeshConfig, MeshNode, NetworkStack
+    from rescuemesh.mesh.keys import team_key_from_seed
+    from rescuemesh.mesh.security import FrameSealer
+    from rescuemesh.runtime.ble_check import default_stack
+
+    def make_stack(address):
+        if address != 3:
+            return default_stack(address)
+        stranger = FrameSealer.from_team_key(team_key_from_seed(12345))
+        return NetworkStack(Endpoint(address), MeshNode(address, MeshConfig(), stranger))
+
+    report = run(run_ble_check(updates=1, timeout_s=3.0, make_stack=make_stack), timeout_s=15.0)
+    assert not report.passed and "Heartbeat warm-up" in report.failure  # robot_3's frames never open
+    good = run(run_ble_check(updates=1, timeout_s=10.0), timeout_s=20.0)
+    assert good.passed and good.authenticated and "authenticated frames" in good.summary()

@@ -107,9 +107,15 @@ class RunRecorder:
     stopped even when the run fails). Messages carry simulated time: log time = publish time =
     header timestamp, in ns from the start of the run."""
 
-    def __init__(self, rt, map_model, path: Path | None, *, live_port: int | None = None) -> None:
+    def __init__(self, rt, map_model, path: Path | None, *, live_port: int | None = None,
+                 rosbag: Path | None = None) -> None:
         self.rt = rt
         self.path = path
+        self.rosbag = None  # with `rosbag`, the run also goes to a rosbag2 folder (report/rosbag.py)
+        if rosbag is not None:
+            from rescuemesh.report.rosbag import RosbagRecorder  # imports rosbags: only when asked for
+
+            self.rosbag = RosbagRecorder(rt, rosbag)
         self._context = foxglove.Context()
         self._writer = self._server = None
         if path is not None:
@@ -162,6 +168,8 @@ class RunRecorder:
         """Publish what happened up to `rt.time`: poses and transforms of new trajectory samples,
         new scans, radio frames whose fate is known, and (each LOG_PERIOD_S) new log lines."""
         now = self.rt.time
+        if self.rosbag is not None:
+            self.rosbag.tick()
         if self._resend:
             self._send_static_again(now)
         transforms = []
@@ -203,6 +211,8 @@ class RunRecorder:
         stop the server. Returns the file's path (None without a file). Safe to call twice."""
         if self._context is None:
             return self.path
+        if self.rosbag is not None:
+            self.rosbag.finish()
         self._publish_radio(math.inf)
         self._publish_logs()
         self._publish_paths(self.rt.time)
@@ -211,6 +221,8 @@ class RunRecorder:
 
     def close(self) -> None:
         """Close the file and stop the server, publishing nothing more."""
+        if self.rosbag is not None:
+            self.rosbag.close()
         if self._server is not None:
             self._server.stop()
             self._server = None

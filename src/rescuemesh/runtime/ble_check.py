@@ -51,6 +51,18 @@ DRAIN_S = 0.25
 STOP_TIMEOUT_S = 5.0
 #: Events pulled from a stack per input: a runaway guard.
 MAX_EVENTS_PER_INPUT = 10_000
+#: The team key of the check's robots derives from this seed (as `rescuemesh robot --seed 0`'s).
+CHECK_SEED = 0
+#: How often the warm-up looks whether the leader has heard every follower's Heartbeat, in s.
+WARM_UP_POLL_S = 0.05
+#: TTL of the check's Heartbeats: 0, not relayed (the check's robots hear each other directly; relayed
+#: copies would only queue on the bearers ahead of the commands).
+WARM_UP_HEARTBEAT_TTL = 0
+#: Each robot sends a Heartbeat this often during the warm-up, in s.
+WARM_UP_PERIOD_S = 0.5
+#: After the warm-up, the relays of its Heartbeats (two per Heartbeat among three robots, a hold of
+#: 60 ms each, queued behind each other) get this long to leave the air, in s.
+WARM_UP_SETTLE_S = 0.5
 
 
 class FrameStack(Protocol):
@@ -90,11 +102,17 @@ class FrameSink(Protocol):
 
 def default_stack(address: int) -> FrameStack:
     """A robot's network stack as in the simulation (endpoint with the BLE ack timeout, on a mesh
-    node that relays): the stack the check uses unless told otherwise. No relay retransmit: the
+    node that relays, its frames authenticated and encrypted under the team key of CHECK_SEED, as a
+    robot's are by default): the stack the check uses unless told otherwise. No relay retransmit: the
     bearer already keeps every frame on the air for three advertising events, which is what a
     Bluetooth Mesh stack's network and relay retransmissions amount to; more would queue."""
-    endpoint = Endpoint(address, EndpointConfig(reliability=ReliabilityConfig(ack_timeout_s=BLE_ACK_TIMEOUT_S)))
-    return NetworkStack(endpoint, MeshNode(address, MeshConfig()))
+    from rescuemesh.mesh.keys import team_key_from_seed
+    from rescuemesh.mesh.security import FrameSealer
+
+    endpoint = Endpoint(address, EndpointConfig(reliability=ReliabilityConfig(ack_timeout_s=BLE_ACK_TIMEOUT_S),
+                                                heartbeat_ttl=WARM_UP_HEARTBEAT_TTL))
+    sealer = FrameSealer.from_team_key(team_key_from_seed(CHECK_SEED))
+    return NetworkStack(endpoint, MeshNode(address, MeshConfig(), sealer))
 
 
 class StackPump:
@@ -302,12 +320,37 @@ class _Script:
         self.report = report
         self.updates = updates
         self.phase = "starting"
+        self.started = asyncio.get_running_loop().time()
 
     async def run(self) -> None:
         leader = self.robots[LEADER]
         followers = [a for a in self.robots if a != LEADER]
         loop = asyncio.get_running_loop()
         pose = Pose(0.0, 0.0, 0.0, 0.0)
+
+        # Heartbeat warm-up: a robot commands a peer it has heard (its Heartbeat, authenticated), as
+        # `rescuemesh robot`'s mission does; a stack without a liveness table (a bare Endpoint) skips it
+        # (every robot sends a Heartbeat each WARM_UP_PERIOD_S: it carries the sender's epoch, which an
+        # authenticated frame's receiver needs, as a robot's brain sends one each second)
+        self.phase = "Heartbeat warm-up"
+        def everyone_heard(now: float) -> bool:  # each robot has heard each other's Heartbeat (its epoch)
+            return all(r.stack.is_reachable(other, now) for a, r in self.robots.items() for other in self.robots
+                       if other != a)
+
+        if all(callable(getattr(r.stack, "is_reachable", None)) for r in self.robots.values()):
+            from rescuemesh.robot.records import heartbeat_phase_s
+
+            # each robot's Heartbeats at its own phase, as brains send theirs: not all on air at once
+            next_beat = {a: loop.time() + heartbeat_phase_s(a, WARM_UP_PERIOD_S) for a in self.robots}
+            while not everyone_heard(loop.time()):
+                for address, robot in self.robots.items():
+                    if loop.time() >= next_beat[address]:
+                        robot.endpoint.send_heartbeat(loop.time())
+                        robot.pump.transmit(Cause.TIMER)
+                        next_beat[address] += WARM_UP_PERIOD_S
+                await asyncio.sleep(WARM_UP_POLL_S)
+            await asyncio.sleep(WARM_UP_SETTLE_S)  # the Heartbeats' relays leave the air before the Follow
+            self.report.warm_up_s = loop.time() - self.started
 
         self.phase = "Follow"
         outcomes = await self._commands(leader, followers, lambda: Follow(pose))
@@ -395,6 +438,8 @@ async def run_ble_check(
             address: _Robot(address, make_stack(address), bearer, log, np.random.default_rng(stream))
             for (address, bearer), stream in zip(bearers.items(), streams)
         }
+        report.authenticated = all(getattr(getattr(r.stack, "node", None), "sealer", None) is not None
+                                   for r in robots.values())
         script = _Script(robots, report, updates)
         started = loop.time()
         try:

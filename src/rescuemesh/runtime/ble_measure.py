@@ -102,6 +102,8 @@ class BleCheckReport:
     robots: int
     passed: bool = False
     failure: str | None = None
+    authenticated: bool = False  # frames sealed under a team key (AES-CCM), as a robot's are
+    warm_up_s: float = 0.0  # until the leader had heard every follower's Heartbeat
     commands_sent: int = 0
     commands_confirmed: int = 0
     pose_updates_sent: int = 0
@@ -130,7 +132,9 @@ class BleCheckReport:
         """A few lines for people: one figure per line."""
         verdict = "PASS" if self.passed else "FAIL"
         lines = [
-            f"ble-check: {verdict}, {self.robots} robots on {self.controllers}, {self.duration_s:.1f} s",
+            f"ble-check: {verdict}, {self.robots} robots on {self.controllers}, {self.duration_s:.1f} s, "
+            f"{'authenticated' if self.authenticated else 'unauthenticated'} frames",
+            f"  Heartbeat warm-up {self.warm_up_s:.1f} s",
             f"  commands {self.commands_confirmed}/{self.commands_sent} confirmed",
             f"  PoseUpdates {self.pose_updates_confirmed}/{self.pose_updates_sent} confirmed",
             f"  frame latency p50 {self.frame_latency_p50_ms:.1f} ms, p95 {self.frame_latency_p95_ms:.1f} ms,"

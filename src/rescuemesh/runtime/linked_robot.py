@@ -58,8 +58,15 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="rescuemesh robot", description="one robot on a real network over Zenoh (KinematicBody)")
+    p = _Parser(prog="rescuemesh robot", description="one robot on a real network: its frames over Zenoh (IP) or "
+                                                     "Bluetooth LE advertising (--link ble --hci SPEC)")
     p.add_argument("--name", required=True, help="robot_N")
+    p.add_argument("--link", choices=["zenoh", "ble"], default="zenoh",
+                   help="zenoh: frames over Zenoh on an IP network (--listen/--connect); ble: over a Bluetooth LE "
+                        "controller as Bluetooth Mesh advertising (--hci; docs/ble.md)")
+    p.add_argument("--hci", default=None, metavar="SPEC",
+                   help="--link ble: the controller, a bumble transport (usb:0, hci-socket:0, "
+                        "serial:/dev/ttyACM0,1000000, tcp-client:127.0.0.1:PORT)")
     p.add_argument("--listen", action="append", default=[], metavar="tcp/IP:PORT", help="endpoint to listen on")
     p.add_argument("--connect", action="append", default=[], metavar="tcp/IP:PORT", help="peer endpoint to connect to")
     p.add_argument("--team", default="team", help="team name: the key expressions' chunk (default team)")
@@ -82,11 +89,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--exit-when-done", action="store_true",
                    help="exit when the mission is over, or (no mission) when a commanded behaviour has ended")
     p.add_argument("--json-out", default=None, metavar="FILE", help="write a report of the run here")
-    p.add_argument("--body", choices=["kinematic", "ros1"], default="kinematic",
+    p.add_argument("--body", choices=["kinematic", "ros1", "ros2"], default="kinematic",
                    help="kinematic: a simulated unicycle (default); ros1: a ROS 1 robot's /ROBOT/odom, /ROBOT/scan "
-                        "and /ROBOT/cmd_vel, with the paper's topics (docs/ros1.md)")
+                        "and /ROBOT/cmd_vel, with the paper's topics (docs/ros1.md); ros2: the same on ROS 2, this "
+                        "process a ROS 2 node in namespace /ROBOT, with the SendCommand action (docs/ros2.md)")
     p.add_argument("--odometry-wait", type=float, default=10.0, metavar="S",
-                   help="--body ros1: how long to wait for the first odometry (default 10 s)")
+                   help="--body ros1/ros2: how long to wait for the first odometry (default 10 s)")
+    from rescuemesh.runtime.ros_options import add_ros_arguments
+
+    add_ros_arguments(p)  # topic names, pose source, laser mount, limits; then `--ros-args ...` for ros2
     return p
 
 
@@ -107,11 +118,33 @@ def build_ros1_robot(options: dict):
     from rescuemesh.runtime.ros1_body import Ros1Body, init_node
     from rescuemesh.runtime.ros1_paper import Ros1Paper
 
+    from rescuemesh.runtime.ros_options import ros1_body_kwargs
+
     name = options["name"]
     init_node(f"rescuemesh_{name}")
-    body = Ros1Body(name, odometry_wait_s=options["odometry_wait"])
+    body = Ros1Body(name, odometry_wait_s=options["odometry_wait"], **ros1_body_kwargs(options["ros"]))
     brain, stack = _software(name, body, options["config"], _grid(options["grid"]), body.pose())
     return body, brain, stack, Ros1Paper(brain)
+
+
+def build_ros2_robot(options: dict):
+    """A ROS 2 robot: this process a ROS 2 node (runtime/ros2_body.py), its body, brain, stack and the
+    paper's topics and action: (body, brain, stack, paper). Raises Ros2Unavailable, Ros2MsgsUnavailable
+    or NoOdometryError (one line each); the node is closed again when it fails."""
+    from rescuemesh.runtime.ros2_body import Ros2Body, Ros2Node
+    from rescuemesh.runtime.ros2_paper import Ros2Paper
+    from rescuemesh.runtime.ros_options import ros2_body_kwargs
+
+    name, grid = options["name"], _grid(options["grid"])
+    ros = Ros2Node(name, namespace=options["ros"]["namespace"], ros_args=options["ros_args"])
+    try:
+        body = Ros2Body(ros, name, odometry_wait_s=options["odometry_wait"], **ros2_body_kwargs(options["ros"]))
+        brain, stack = _software(name, body, options["config"], grid, body.pose())
+        paper = Ros2Paper(brain, ros, on_map=lambda x, y: not grid.is_occupied(x, y))
+    except BaseException:
+        ros.close()
+        raise
+    return body, brain, stack, paper
 
 
 def build_robot(name: str, start: Pose2D, config: SimConfig, clock: Callable[[], float],
@@ -246,28 +279,50 @@ def main(argv: Sequence[str] | None = None, *, out: TextIO | None = None, err: T
     out = out if out is not None else sys.stdout
     err = err if err is not None else sys.stderr
     try:
-        options = _options(build_parser().parse_args(list(sys.argv[1:] if argv is None else argv)))
+        from rescuemesh.runtime.ros_options import split_ros_args
+
+        argv, ros_args = split_ros_args(sys.argv[1:] if argv is None else argv)
+        options = _options(build_parser().parse_args(argv))
+        if ros_args and options["body"] != "ros2":
+            raise UsageError("--ros-args is for --body ros2")
+        options["ros_args"] = ros_args
     except (UsageError, ValueError) as exc:
         print(f"rescuemesh robot: error: {exc}", file=err)
         return 2
     import zenoh
 
     paper = None
-    if options["body"] == "ros1":
+    if options["body"] in ("ros1", "ros2"):
         try:
-            body, brain, stack, paper = build_ros1_robot(options)
-        except (ImportError, RuntimeError) as exc:  # Ros1Unavailable, NoOdometryError: one line
+            build = build_ros1_robot if options["body"] == "ros1" else build_ros2_robot
+            body, brain, stack, paper = build(options)
+        except (ImportError, RuntimeError) as exc:  # Ros1/2Unavailable, NoOdometryError: one line
             print(f"rescuemesh robot: error: {str(exc).splitlines()[0]}", file=err)
             return 2
+        from rescuemesh.runtime.ros_options import map_frame_warning
+
+        warning = map_frame_warning(options["name"], options["ros"], getattr(body, "resolved", {}).get(
+            "odom", getattr(getattr(body, "topics", None), "odom", "odom")))
+        if warning is not None:
+            print(warning, file=err)
         clock = body.now
     else:
         clock = monotonic_from_zero()
         body, brain, stack = build_robot(options["name"], options["start"], options["config"], clock, options["grid"])
     try:
-        link = ZenohLink.open(options["team"], robot_address(options["name"]),
-                              listen=options["listen"], connect=options["connect"])
+        if options["link"] == "ble":
+            from rescuemesh.runtime.ble_link import BleLink
+
+            link = BleLink.open(options["hci"], name=options["name"])
+        else:
+            link = ZenohLink.open(options["team"], robot_address(options["name"]),
+                                  listen=options["listen"], connect=options["connect"])
     except (zenoh.ZError, ValueError) as exc:
         print(f"rescuemesh robot: error: cannot open the Zenoh session: {str(exc).splitlines()[0]}", file=err)
+        return 2
+    except (ImportError, RuntimeError, TimeoutError) as exc:  # bumble missing, BleSetupError, no answer
+        print(f"rescuemesh robot: error: --link ble: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}",
+              file=err)
         return 2
     mission = Mission(options["follower"], options["goal"], options["linger"]) \
         if options["follower"] is not None or options["goal"] is not None else None
@@ -292,6 +347,10 @@ def main(argv: Sequence[str] | None = None, *, out: TextIO | None = None, err: T
         closing = time.monotonic()
         closed = link.close()
         close_s = time.monotonic() - closing
+        if options["body"] == "ros2":  # a zero Twist waited for, then the node leaves the graph
+            body.close()
+            paper.close()
+            body.ros.close()
     report = _report(options, brain, stack, body, link, loop, mission, trajectory)
     report["link_close"] = {"clean": closed, "took_s": round(close_s, 3)}
     if options["json_out"] is not None:
@@ -305,11 +364,19 @@ def main(argv: Sequence[str] | None = None, *, out: TextIO | None = None, err: T
 
 
 def _options(args: argparse.Namespace) -> dict:
+    from rescuemesh.runtime.ros_options import ros_body_options
+
     robot_address(args.name)  # ValueError: unknown robot
     for endpoint in args.listen + args.connect:
         check_endpoint(endpoint)
-    if not args.listen and not args.connect:
+    if args.link == "zenoh" and not args.listen and not args.connect:
         raise UsageError("give at least one --listen or --connect endpoint (tcp/IP:PORT)")
+    if args.link == "ble" and (args.listen or args.connect):
+        raise UsageError("--listen and --connect are for --link zenoh; --link ble takes --hci SPEC")
+    if args.link == "ble" and not args.hci:
+        raise UsageError("--link ble needs --hci SPEC: the Bluetooth controller (usb:0, hci-socket:0, ...)")
+    if args.hci is not None and args.link != "ble":
+        raise UsageError("--hci is for --link ble")
     check_team(args.team)
     if args.duration is not None and not (args.duration > 0 and math.isfinite(args.duration)):
         raise UsageError(f"--duration must be a positive number of s, got {args.duration}")
@@ -349,7 +416,8 @@ def _options(args: argparse.Namespace) -> dict:
     return {"name": args.name, "listen": args.listen, "connect": args.connect, "team": args.team, "config": config,
             "start": start, "goal": goal, "follower": follower, "duration": args.duration, "grid": grid,
             "exit_when_done": args.exit_when_done, "json_out": args.json_out, "linger": args.linger,
-            "body": args.body, "odometry_wait": args.odometry_wait}
+            "body": args.body, "odometry_wait": args.odometry_wait, "ros": ros_body_options(args, UsageError),
+            "link": args.link, "hci": args.hci}
 
 
 def _on_signals(stop: Callable[[], None]) -> Callable[[], None]:

@@ -35,7 +35,7 @@ def run_scenario(name: str | None, options: ScenarioOptions, *, map_path: Path |
                  out_dir: Path | None = None,
                  progress: Callable[[float, float], None] | None = None,
                  processes: ProcessOptions | None = None, realtime: bool = False,
-                 live_port: int | None = None, scenario: Scenario | None = None) -> RunOutcome:
+                 live_port: int | None = None, scenario: Scenario | None = None, rosbag: bool = False) -> RunOutcome:
     """Run scenario `name`. Raises ScenarioError / MapError / ValueError for bad options (a `live_port`
     that cannot be served too). With `out_dir`, the run is recorded to `out_dir/run.mcap`; with
     `live_port`, the same channels are served on ws://127.0.0.1:live_port during the run.
@@ -63,7 +63,7 @@ def run_scenario(name: str | None, options: ScenarioOptions, *, map_path: Path |
     with ExitStack() as cleanup:
         rt = _runtime(scenario, map_model, config, processes, out_dir, cleanup)
         setup_s = time.perf_counter() - wall_start  # world built, robots joined
-        recorder = _recorder(rt, map_model, out_dir, live_port, cleanup)
+        recorder = _recorder(rt, map_model, out_dir, live_port, cleanup, rosbag=rosbag)
         next_report = 0.0
         if progress:
             progress(rt.time, scenario.limit_s)
@@ -123,13 +123,16 @@ def _runtime(scenario, map_model, config, processes: ProcessOptions | None, out_
     return rt
 
 
-def _recorder(rt, map_model, out_dir: Path | None, live_port: int | None, cleanup: ExitStack):
-    """The run's recorder (run.mcap in `out_dir`, the live server), closed by `cleanup`; None for neither."""
+def _recorder(rt, map_model, out_dir: Path | None, live_port: int | None, cleanup: ExitStack, *,
+              rosbag: bool = False):
+    """The run's recorder (run.mcap in `out_dir`, the live server, with `rosbag` the rosbag2 folder
+    run.rosbag2 in `out_dir`), closed by `cleanup`; None for neither."""
     if out_dir is None and live_port is None:
         return None
     from rescuemesh.report.recording import RunRecorder  # imports foxglove-sdk: only when recording
 
-    recorder = RunRecorder(rt, map_model, out_dir / "run.mcap" if out_dir is not None else None, live_port=live_port)
+    recorder = RunRecorder(rt, map_model, out_dir / "run.mcap" if out_dir is not None else None, live_port=live_port,
+                           rosbag=out_dir / "run.rosbag2" if rosbag and out_dir is not None else None)
     cleanup.callback(recorder.close)
     return recorder
 
