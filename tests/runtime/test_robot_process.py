@@ -42,3 +42,12 @@ def test_a_navigation_with_its_costmap_stays_in_the_robot():
 def test_every_request_has_its_reply_type():
     assert set(msg.ANSWERS) == set(msg.REQUESTS)
     assert set(msg.ANSWERS.values()) | {msg.ErrorReply} == set(msg.REPLIES)
+
+
+def test_a_transmission_with_its_message_type_crosses():
+    # this used to be refused: Transmission.msg_type is annotated int and holds a MessageType (show-scan died)
+    from rescuemesh.mesh.node import Transmission
+    from rescuemesh.protocol import MessageType
+
+    sent = Transmission(b"\x01", 1, 2, MessageType.SHOW_SCAN, 5, 4, False, None, None)
+    assert decode(encode(msg.StackReply([sent], None))).transmissions == [sent]

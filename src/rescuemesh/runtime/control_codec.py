@@ -212,7 +212,9 @@ def _checker(hint):
         return lambda v: v is None
     if hint is float:
         return lambda v: type(v) is float or type(v) is int
-    if hint in (int, bool, str, bytes):
+    if hint is int:  # a registered IntEnum (a message type, say) is an int too
+        return lambda v: type(v) is int or isinstance(v, (enum.IntEnum, enum.IntFlag))
+    if hint in (bool, str, bytes):
         return lambda v: type(v) is hint
     if origin is None and isinstance(hint, type):
         if issubclass(hint, PurePath):
