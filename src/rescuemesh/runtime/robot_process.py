@@ -25,7 +25,7 @@ import sys
 import time
 from dataclasses import replace
 
-from rescuemesh.body import Body, NoRendererError, RobotKind
+from rescuemesh.body import Body, LaserScan, NoRendererError, RobotKind
 from rescuemesh.geometry import Pose2D
 from rescuemesh.nav import Costmap
 from rescuemesh.runtime import control_messages as msg
