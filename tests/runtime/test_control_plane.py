@@ -128,7 +128,7 @@ def test_a_forged_and_a_replayed_reply_are_dropped_and_counted_and_the_genuine_o
 
 def test_a_robot_that_answers_without_the_key_does_not_count_as_answering():
     client = CallClient(_Session(lambda counter, nonce: [pickle_call("rescuemesh.cli", "os.system", "true")]),
-                        Keys("t"), KEY)
+                        Keys("t"), KEY, timeout_s=0.2)
     with pytest.raises(ControlError, match="did not answer with the run's control key"):
         client.call("robot_1", msg.Hello())
     assert client.refusals.count == 1
@@ -191,59 +191,60 @@ class _Payload:
         return self.data
 
 
-class _Query:
-    def __init__(self, data: bytes) -> None:
-        self.payload, self.key_expr = _Payload(data), "rescuemesh/t/robot/robot_1/rpc"
-        self.replies: list[bytes] = []
-
-    def reply(self, key, payload: bytes) -> None:
-        _Query.sink.append(payload)
-
-    def drop(self) -> None:
-        pass
+class _Sample:
+    def __init__(self, data: bytes, key: str = "rescuemesh/t/robot/robot_1/reply") -> None:
+        self.payload, self.key_expr = _Payload(data), key
 
 
-class _Queryable:
+def _Query(data: bytes) -> _Sample:  # a request as the robot's subscriber gets it
+    return _Sample(data, "rescuemesh/t/robot/robot_1/request")
+
+
+class _Declared:
+    def __init__(self, put=None) -> None:
+        self.put = put
+
     def undeclare(self) -> None:
         pass
 
 
 class _ServerSession:
-    def declare_queryable(self, key, callback):
-        return _Queryable()
+    def __init__(self, replies: list) -> None:
+        self.replies = replies
+
+    def declare_publisher(self, key, **options):
+        return _Declared(self.replies.append)
+
+    def declare_subscriber(self, key, callback):
+        return _Declared()
 
 
 def _server():
     from rescuemesh.runtime.robot_process import RobotWorker
 
     replies: list[bytes] = []
-    _Query.sink = replies
-    worker = RobotWorker("robot_1")
-    return CallServer(_ServerSession(), "k", "robot_1", KEY, worker.handle), replies
-
-
-class _Reply:
-    def __init__(self, data: bytes) -> None:
-        self.ok = type("Sample", (), {"payload": _Payload(data)})()
-
-
-class _Channel:
-    def __init__(self, replies) -> None:
-        self.replies = list(replies)
-
-    def recv(self):
-        if not self.replies:
-            raise RuntimeError("channel closed")
-        return _Reply(self.replies.pop(0))
+    server = CallServer(_ServerSession(replies), Keys("t"), "robot_1", KEY, RobotWorker("robot_1").handle)
+    server._on_query = server._on_request
+    return server, replies
 
 
 class _Session:
-    def __init__(self, answer) -> None:
-        self.answer = answer
+    """A world's session whose robot_1 answers each request with `answer(counter, nonce)`'s replies."""
 
-    def get(self, key, *, payload: bytes, **options):
-        _, nonce, counter, _, _ = KEY.open(payload)
-        return _Channel(self.answer(counter, nonce))
+    def __init__(self, answer) -> None:
+        self.answer, self.deliver = answer, None
+
+    def declare_subscriber(self, key, callback):
+        self.deliver = callback
+        return _Declared()
+
+    def declare_publisher(self, key, **options):
+        def put(payload: bytes) -> None:
+            _, nonce, counter, _, _ = KEY.open(payload)
+            for reply in self.answer(counter, nonce):
+                self.deliver(_Sample(reply))
+
+        return _Declared(put)
 
 
 class _Link:

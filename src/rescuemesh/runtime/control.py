@@ -1,8 +1,8 @@
 """The control plane between a world process and its robot processes, over Zenoh.
 
 Owns: the key expressions, the Zenoh session settings (peer to peer, explicit endpoints, no
-multicast scouting), authenticated request/reply calls (a robot serves a queryable, the world calls
-it), liveliness tokens that tell each side the other is gone, and what a refused message costs: one
+multicast scouting), authenticated request/reply calls (the world publishes a request on a robot's
+request key, the robot answers on its reply key), liveliness tokens that tell each side the other is gone, and what a refused message costs: one
 log line and a count. Must not know: what the calls mean (runtime/robot_process.py and
 runtime/process_world.py do), how values are written (runtime/control_codec.py).
 
@@ -23,8 +23,10 @@ import hmac
 import itertools
 import logging
 import os
+import queue
 import struct
 import threading
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -52,6 +54,10 @@ _VERSION = 1
 _TAG_BYTES = 16
 _HEADER = struct.Struct(">BB16sQB")  # version, direction, run nonce, counter, length of the robot's name
 _REQUEST, _REPLY = 1, 2
+#: Replies waiting for one robot's call at most; more are refused (a flood on its reply key).
+_MAX_WAITING = 256
+#: Requests and replies are sent at once (not batched) and never dropped under congestion.
+_PROMPT = {"congestion_control": zenoh.CongestionControl.BLOCK, "express": True}
 #: Refusals logged one by one; after these, one line per power of ten (a flood is not a log flood).
 _LOGGED_REFUSALS = 20
 
@@ -147,12 +153,19 @@ class Keys:
     def robot_alive(self, name: str) -> str:
         return f"rescuemesh/{self.run}/robot/{name}/alive"
 
-    def robot_rpc(self, name: str) -> str:
-        return f"rescuemesh/{self.run}/robot/{name}/rpc"
+    def robot_request(self, name: str) -> str:
+        return f"rescuemesh/{self.run}/robot/{name}/request"
+
+    def robot_reply(self, name: str) -> str:
+        return f"rescuemesh/{self.run}/robot/{name}/reply"
+
+    @property
+    def robots_reply(self) -> str:
+        return f"rescuemesh/{self.run}/robot/*/reply"
 
     @staticmethod
     def robot_of(key: str) -> str:
-        """The robot name in a `.../robot/<name>/alive` key."""
+        """The robot name in a `.../robot/<name>/alive` (or `/reply`) key."""
         parts = str(key).split("/")
         return parts[-2]
 
@@ -180,15 +193,16 @@ def _payload(carrier) -> bytes:
 
 
 class CallServer:
-    """A robot's side: authenticated requests from its world on its queryable, answered at once on
-    Zenoh's thread by `handler`, one at a time (the brain is not thread-safe). A request that is
-    forged, replayed, malformed or not for this robot is refused (logged, counted) and not answered.
+    """A robot's side: authenticated requests from its world on its request key, answered at once on
+    Zenoh's thread by `handler`, one at a time (the brain is not thread-safe), on its reply key. A
+    request that is forged, replayed, malformed or not for this robot is refused (logged, counted)
+    and not answered.
 
     A set-up must carry this process's nonce (its answer to a Hello), so a set-up recorded in another
     run is refused; the set-up binds the world's run nonce, and from then on each request's counter
     must exceed the last one accepted."""
 
-    def __init__(self, session: zenoh.Session, key: str, name: str, control_key: ControlKey,
+    def __init__(self, session: zenoh.Session, keys: Keys, name: str, control_key: ControlKey,
                  handler: Callable[[Any], Any]) -> None:
         self.name, self.control_key, self.handler = name, control_key, handler
         self.nonce = os.urandom(16)  # this process's: a set-up must echo it
@@ -197,18 +211,17 @@ class CallServer:
         self._world: bytes | None = None  # the run nonce of the world that set us up
         self._last = 0
         self._lock = threading.Lock()
-        self._queryable = session.declare_queryable(key, self._on_query)
+        self._publisher = session.declare_publisher(keys.robot_reply(name), **_PROMPT)
+        self._subscriber = session.declare_subscriber(keys.robot_request(name), self._on_request)
 
-    def _on_query(self, query) -> None:
-        try:
-            with self._lock:
-                reply = self._answer(query)
-            if reply is not None:
-                query.reply(query.key_expr, reply)
-        except zenoh.ZError:
-            pass  # the caller is gone
-        finally:
-            query.drop()  # the reply completes only when the query is dropped
+    def _on_request(self, sample) -> None:
+        with self._lock:
+            reply = self._answer(sample)
+        if reply is not None:
+            try:
+                self._publisher.put(reply)
+            except zenoh.ZError:
+                pass  # the session is closing
 
     def _answer(self, query) -> bytes | None:
         try:
@@ -245,12 +258,14 @@ class CallServer:
         return self.control_key.seal(_REPLY, nonce, counter, self.name, payload)
 
     def close(self) -> None:
-        self._queryable.undeclare()
+        self._subscriber.undeclare()
+        self._publisher.undeclare()
 
 
 class CallClient:
     """The world's side: calls to robots by name, one at a time or to several at once. A reply that
-    does not authenticate as the robot asked, for this call, is dropped and counted."""
+    does not authenticate as the robot asked, for this call, is dropped and counted; so is any reply
+    beyond _MAX_WAITING queued for one robot (a flood)."""
 
     def __init__(self, session: zenoh.Session, keys: Keys, control_key: ControlKey, *,
                  timeout_s: float = CALL_TIMEOUT_S) -> None:
@@ -259,6 +274,31 @@ class CallClient:
         self.refusals = Refusals("world")
         self.calls = 0
         self._counter = itertools.count(1)
+        self._inbox: dict[str, queue.SimpleQueue] = {}
+        self._publishers: dict[str, Any] = {}
+        self._subscriber = session.declare_subscriber(keys.robots_reply, self._on_reply)
+
+    def expect(self, robot: str) -> None:
+        """Robot `robot` (re)joins: forget what its previous process left (late replies, its leaving)."""
+        self._inbox[robot] = queue.SimpleQueue()
+
+    def gone(self, robot: str) -> None:
+        """Robot `robot`'s process is gone (its token went): a call waiting for it ends now."""
+        inbox = self._inbox.get(robot)
+        if inbox is not None:
+            inbox.put(None)
+
+    def _on_reply(self, sample) -> None:
+        robot = Keys.robot_of(str(sample.key_expr))
+        inbox = self._inbox.get(robot)
+        try:
+            if inbox is None:
+                raise ControlError(f"a reply for {robot[:40]!r}, which no call waits for")
+            if inbox.qsize() >= _MAX_WAITING:
+                raise ControlError(f"more than {_MAX_WAITING} replies waiting for {robot}")
+            inbox.put(_payload(sample))
+        except ControlError as error:
+            self.refusals.refuse(str(error))
 
     def call(self, robot: str, request: Any, *, timeout_s: float | None = None) -> Any:
         return self._result(robot, request, self._send(robot, request, timeout_s))
@@ -281,30 +321,36 @@ class CallClient:
         self.calls += 1
         counter = next(self._counter)
         payload = self.control_key.seal(_REQUEST, self.nonce, counter, robot, encode(request))
-        replies = self.session.get(self.keys.robot_rpc(robot), payload=payload,
-                                   consolidation=zenoh.ConsolidationMode.NONE,
-                                   timeout=self.timeout_s if timeout_s is None else timeout_s)
-        return counter, replies
+        if robot not in self._inbox:
+            self.expect(robot)
+        publisher = self._publishers.get(robot)
+        if publisher is None:
+            publisher = self._publishers[robot] = self.session.declare_publisher(self.keys.robot_request(robot),
+                                                                                 **_PROMPT)
+        publisher.put(payload)
+        return counter, self.timeout_s if timeout_s is None else timeout_s
 
     def _result(self, robot: str, request: Any, sent) -> Any:
-        counter, replies = sent
+        counter, timeout_s = sent
         expected = msg.ANSWERS[type(request)]
+        inbox = self._inbox[robot]
+        deadline = time.monotonic() + timeout_s
         refused = 0
         while True:
             try:
-                reply = replies.recv()
-            except Exception:  # the reply channel closed: no (more) replies
+                data = inbox.get(timeout=max(0.0, deadline - time.monotonic()))
+            except queue.Empty:
                 if refused:
-                    raise ControlError(f"{robot} did not answer with the run's control key "
+                    raise ControlError(f"{robot} did not answer with the run's control key within {timeout_s:g} s "
                                        f"({refused} repl{'y' if refused == 1 else 'ies'} refused)") from None
-                raise ControlError(f"{robot} did not answer (its process is gone, or it does not hold the run's "
-                                   f"control key?)") from None
-            if reply.ok is None:
-                raise ControlError(f"{robot} did not answer within {self.timeout_s:g} s")
+                raise ControlError(f"{robot} did not answer within {timeout_s:g} s (its process is gone, or it "
+                                   f"does not hold the run's control key?)") from None
+            if data is None:
+                raise ControlError(f"{robot}'s process is gone (its liveliness token went)")
             try:
-                direction, nonce, count, name, body = self.control_key.open(_payload(reply.ok))
+                direction, nonce, count, name, body = self.control_key.open(data)
                 if direction != _REPLY or nonce != self.nonce or count != counter or name != robot:
-                    raise ControlError(f"a reply that is not {robot}'s to call {counter} (replayed?)")
+                    raise ControlError(f"a reply that is not {robot}'s to call {counter} (replayed or late?)")
                 answer = decode(body)
                 if isinstance(answer, msg.ErrorReply):
                     raise RemoteError(f"{robot}: {answer.message}\n--- in the robot process ---\n{answer.traceback}")
@@ -314,6 +360,11 @@ class CallClient:
             except (ControlError, CodecError) as error:
                 refused += 1
                 self.refusals.refuse(f"reply for {robot}: {error}")
+
+    def close(self) -> None:
+        self._subscriber.undeclare()
+        for publisher in self._publishers.values():
+            publisher.undeclare()
 
 
 class Liveliness:

@@ -7,7 +7,7 @@ clock, its control key) and ProcessRuntime: SimRuntime's loop with robots that a
 Must not know: scenarios' scripts and criteria, plots, what a brain does inside.
 
 A tick at time t: the world steps to t, the medium delivers what is due (each frame heard is one call
-to its robot; the robots that hear the same frame are called together), every live robot steps its
+to its robot, and so is each stack timer), every live robot steps its
 brain and answers what it sends, how its wheels turn and what changed in its status (one call each,
 all at once), the mission script runs (its reads come from that status, its commands go to the
 robots), a robot the script commanded is asked again what it sends, and the medium takes the frames.
@@ -74,14 +74,16 @@ class WorldHost:
         self.session = open_session(listen=[listen])
         self._events: list[tuple[str, bool]] = []
         self._lock = threading.Lock()
-        self.robots = Liveliness(self.session, self.keys.robots_alive, on_change=self._changed)
         self.client = CallClient(self.session, self.keys, ControlKey(control_key))
+        self.robots = Liveliness(self.session, self.keys.robots_alive, on_change=self._changed)
         self._clock = self.session.declare_publisher(self.keys.clock)
         self._token = self.session.liveliness().declare_token(self.keys.world_alive)
 
     def _changed(self, key: str, up: bool) -> None:
         with self._lock:
             self._events.append((Keys.robot_of(key), up))
+        if not up:
+            self.client.gone(Keys.robot_of(key))
 
     def take_events(self) -> list[tuple[str, bool]]:
         """Robots that joined (True) or left (False) since the last call, in order."""
@@ -108,6 +110,7 @@ class WorldHost:
         for part in (self._token, self._clock):
             part.undeclare()
         self.robots.close()
+        self.client.close()
         self.session.close()
 
 
@@ -162,6 +165,7 @@ class ProcessRuntime(SimRuntime):
         that echoes its process's nonce)."""
         body = self.world.bodies[name]
         client = self.host.client
+        client.expect(name)
         hello = client.call(name, msg.Hello(), timeout_s=timeout_s or SETUP_TIMEOUT_S)
         setup = RobotSetup(name, self.starts[name], replace(self.config, team_key=None), self.map.grid,
                            epoch=self.joins[name], kind=body.kind, top_height=body.top_height,

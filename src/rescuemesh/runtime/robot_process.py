@@ -264,7 +264,7 @@ def serve_robot(name: str, connect: str, *, run: str = "default", team_key: byte
             events.put("bye")
         return reply
 
-    server = CallServer(session, keys.robot_rpc(name), name, control_key, handle)
+    server = CallServer(session, keys, name, control_key, handle)
     world = Liveliness(session, keys.world_alive, on_change=lambda key, up: None if up else events.put("world gone"))
     token = None
     try:

@@ -2,12 +2,15 @@
 robots' session settings and no team key.
 
   intruder.py robots ENDPOINT MARKER   connect to a world, declare robot_1..3's liveliness tokens and
-                                       answer every call on their rpc keys with a pickle that runs
+                                       answer every call for them with a pickle that runs
                                        `touch MARKER` (the old decoder ran it)
   intruder.py world ENDPOINT MARKER NAME
-                                       listen as a world (its liveliness token), send robot NAME's rpc
-                                       key the pickles and a typed Bye sealed with the public key,
-                                       then leave
+                                       listen as a world (its liveliness token), send robot NAME
+                                       the pickles and a typed Bye sealed with the public key, then
+                                       leave
+
+It speaks both the old control plane (a queryable per robot at .../robot/NAME/rpc) and the new one
+(requests on .../robot/NAME/request, replies on .../robot/NAME/reply).
 
 Prints "ready" once its tokens are declared (robots) or "sent N" after its calls (world). Runs until
 killed (robots) or until it has sent everything (world).
@@ -51,8 +54,12 @@ def robots(endpoint: str, marker: str) -> None:
 
     keep = []
     for n in (1, 2, 3):
-        keep.append(s.declare_queryable(f"rescuemesh/default/robot/robot_{n}/rpc", answer))
-        keep.append(s.liveliness().declare_token(f"rescuemesh/default/robot/robot_{n}/alive"))
+        robot = f"rescuemesh/default/robot/robot_{n}"
+        keep.append(s.declare_queryable(f"{robot}/rpc", answer))
+        reply = s.declare_publisher(f"{robot}/reply")
+        keep.append(s.declare_subscriber(f"{robot}/request", lambda sample, reply=reply: reply.put(payload)))
+        keep.append(reply)
+        keep.append(s.liveliness().declare_token(f"{robot}/alive"))
     print("ready", flush=True)
     while True:
         time.sleep(1.0)
@@ -74,10 +81,18 @@ def world(endpoint: str, marker: str, name: str) -> None:
                      public.seal(1, b"i" * 16, 2, name, payloads[0])]
     except ImportError:  # a rescuemesh before issue 17
         pass
+    robot = f"rescuemesh/default/robot/{name}"
+    replies = []
+    heard = s.declare_subscriber(f"{robot}/reply", replies.append)
+    request = s.declare_publisher(f"{robot}/request")
     answered = 0
     for payload in payloads:
-        for reply in s.get(f"rescuemesh/default/robot/{name}/rpc", payload=payload, timeout=2.0):
+        for reply in s.get(f"{robot}/rpc", payload=payload, timeout=2.0):
             answered += reply.ok is not None
+        request.put(payload)
+    time.sleep(2.0)
+    answered += len(replies)
+    heard.undeclare()
     print(f"sent {len(payloads)}, answered {answered}", flush=True)
     time.sleep(1.0)
     token.undeclare()
