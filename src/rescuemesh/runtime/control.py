@@ -223,9 +223,9 @@ class CallServer:
             except zenoh.ZError:
                 pass  # the session is closing
 
-    def _answer(self, query) -> bytes | None:
+    def _answer(self, sample) -> bytes | None:
         try:
-            direction, nonce, counter, robot, body = self.control_key.open(_payload(query))
+            direction, nonce, counter, robot, body = self.control_key.open(_payload(sample))
             if direction != _REQUEST or robot != self.name:
                 raise ControlError(f"a {'reply' if direction == _REPLY else 'message'} for {robot!r} on {self.name}'s key")
             request = decode(body)
