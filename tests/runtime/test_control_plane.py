@@ -75,7 +75,8 @@ def test_an_array_is_refused_unless_its_dtype_shape_and_bytes_agree():
 
     assert np.array_equal(decode(array("<f8", [2], b"\x00" * 16)), np.zeros(2))
     for dtype, shape, raw in [("|O", [1], b"\x00" * 8), ("<f8", [3], b"\x00" * 16), ("<f8", [1 << 30, 1 << 30], b""),
-                              ("<f8", [1, 1, 1, 1], b"\x00" * 8), ("<f8", [-1], b"")]:
+                              ("<f8", [1, 1, 1, 1], b"\x00" * 8), ("<f8", [-1], b""), ("|V8", [1], b"\x00" * 8),
+                              ("<U1", [2], b"\x00" * 8), ("|u1", [17, 1 << 20], bytes(17 << 20))]:  # over 16 MiB
         with pytest.raises(CodecError):
             decode(array(dtype, shape, raw))
 
@@ -267,3 +268,13 @@ def _ground():
 def _setup(nonce: bytes) -> msg.RobotSetup:
     return msg.RobotSetup("robot_1", Pose2D(6.6, 4.6, 0.0), _config(), load_map(office_map_path()).grid, 0,
                           _ground(), None, True, nonce)
+
+
+def test_a_flood_on_a_robots_reply_key_is_bounded_and_counted():
+    flood = [OTHER_KEY.seal(REPLY, bytes(16), 1, "robot_1", b"x")] * 1000
+    client = CallClient(_Session(lambda counter, nonce: flood), Keys("t"), KEY, timeout_s=0.2)
+    sent = client._send("robot_1", msg.Hello(), None)  # the flood arrives before the world reads any of it
+    assert client._inbox["robot_1"].qsize() == 256 and client.refusals.count == 1000 - 256
+    with pytest.raises(ControlError, match="did not answer with the run's control key"):
+        client._result("robot_1", msg.Hello(), sent)
+    assert client.refusals.count == 1000
