@@ -4,7 +4,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 
-.PHONY: demo test test-ros test-ros2 bench fuzz clean
+.PHONY: demo test test-ros test-ros2 bench fuzz fuzz-control clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -70,6 +70,9 @@ bench: $(VENV)/.installed
 
 fuzz: $(VENV)/.installed
 	$(BIN)/python -m rescuemesh.fuzz --frames 1000000
+
+fuzz-control: $(VENV)/.installed  # the control plane's input path, 10^5 messages (docs/processes.md)
+	$(BIN)/python -m rescuemesh.runtime.control_fuzz --messages 100000
 
 clean:
 	rm -rf $(VENV) $(ROS_VENV) $(ROS2_VENV) out .pytest_cache

@@ -47,7 +47,8 @@ def test_a_robot_process_runs_without_the_sim_and_ble_extras(tmp_path):
         rt = ProcessRuntime(scenario.map, scenario.starts(), scenario.sim_config(), host, join_timeout_s=20)
         for _ in range(40):  # 2 s: heartbeats go round, brains step, the medium calls every stack
             rt.step()
-        assert rt.brain("robot_2").peer_capabilities  # robot_2 heard the others' heartbeats
+        heard = {n.address for n in rt.stacks["robot_2"].node.neighbours()}
+        assert heard == {1, 3}  # robot_2 heard the others' heartbeats
     finally:
         if rt is not None:
             rt.close()

@@ -1,76 +1,76 @@
 """The control plane between a world process and its robot processes, over Zenoh.
 
 Owns: the key expressions, the Zenoh session settings (peer to peer, explicit endpoints, no
-multicast scouting), request/reply calls (a robot serves a queryable, the world calls it), liveliness
-tokens that tell each side the other is gone, and the restricted pickle the calls are encoded with.
-Must not know: what the calls mean (runtime/robot_process.py and runtime/process_world.py do).
+multicast scouting), authenticated request/reply calls (the world publishes a request on a robot's
+request key, the robot answers on its reply key), liveliness tokens that tell each side the other is gone, and what a refused message costs: one
+log line and a count. Must not know: what the calls mean (runtime/robot_process.py and
+runtime/process_world.py do), how values are written (runtime/control_codec.py).
+
+Every message is sealed: an HMAC-SHA256 tag (16 bytes) over a header (version, direction, the
+world's run nonce, a counter, the robot's name) and the body, under a key derived from the team key
+with its own HKDF label; the team key never crosses the wire. A request counts only if its counter
+is above the last one the robot accepted from this run; a reply counts only if it echoes the
+request's nonce, counter and robot. Nothing is decoded before its tag checks, and the decoder builds
+only the registered types (no pickle). docs/processes.md has the threat model.
 
 Protocol frames between robots never travel here: in a simulated world they cross the world's radio
-medium, on a real network the Zenoh link (transport/zenoh_link.py). This plane carries simulation
-state (poses, scans, calls into a brain) between processes of one run on one trusted host or network;
-its decoder refuses any class outside rescuemesh, numpy arrays and plain Python values, so a stray
-peer cannot make it run code.
+medium, on a real network the Zenoh link (transport/zenoh_link.py).
 """
 
 from __future__ import annotations
 
-import builtins
-import enum
-import io
-import pickle
+import hmac
+import itertools
+import logging
+import os
 import queue
+import struct
 import threading
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import zenoh
 
+from rescuemesh.mesh.keys import hkdf_sha256
+from rescuemesh.runtime import control_messages as msg
+from rescuemesh.runtime.control_codec import MAX_MESSAGE_BYTES, CodecError, decode, encode
 from rescuemesh.transport.zenoh_link import check_endpoint, session_config
 
-__all__ = ["CALL_TIMEOUT_S", "Answer", "Call", "CallClient", "CallServer", "ControlError", "Keys", "Liveliness",
-           "RemoteError", "check_endpoint", "dumps", "loads", "open_session"]
+__all__ = ["CALL_TIMEOUT_S", "CallClient", "CallServer", "ControlError", "ControlKey", "Keys", "Liveliness",
+           "PUBLIC_CONTROL_KEY", "RemoteError", "check_endpoint", "control_key_from_team_key", "open_session"]
+
+log = logging.getLogger("rescuemesh.control")
 
 #: How long one call waits for its reply, in s: a robot that does not answer in this time is gone.
 CALL_TIMEOUT_S = 20.0
+#: HKDF salt and info of the control-plane key (a use of the team key of its own: docs/security.md).
+CONTROL_KEY_SALT, CONTROL_KEY_INFO = b"rescuemesh v1", b"process control plane authentication"
+#: The environment variable a spawned robot process reads its run's control key from (hex).
+CONTROL_KEY_ENV = "RESCUEMESH_CONTROL_KEY"
 
-#: Plain values a call may carry besides rescuemesh's own classes.
-_SAFE_BUILTINS = frozenset({
-    "bool", "bytearray", "bytes", "complex", "dict", "float", "frozenset", "int", "list", "object", "range",
-    "set", "slice", "str", "tuple", "ArithmeticError", "AttributeError", "Exception", "IndexError",
-    "KeyError", "LookupError", "NotImplementedError", "RuntimeError", "TypeError", "ValueError",
-    "ZeroDivisionError",
-})
-_SAFE_GLOBALS = {
-    ("collections", "OrderedDict"), ("collections", "deque"), ("collections", "Counter"),
-    ("collections", "defaultdict"), ("copyreg", "_reconstructor"), ("numpy", "dtype"), ("numpy", "ndarray"),
-    ("pathlib", "PosixPath"), ("pathlib", "PurePosixPath"),
-    ("numpy.core.multiarray", "_reconstruct"), ("numpy._core.multiarray", "_reconstruct"),
-    ("numpy.core.multiarray", "scalar"), ("numpy._core.multiarray", "scalar"),
-    ("numpy._core.numeric", "_frombuffer"), ("numpy.core.numeric", "_frombuffer"),
-}
-
-
-class Call(enum.Enum):
-    """What the world asks a robot (the first item of every request: `(Call.TICK, now, state)`)."""
-
-    SETUP = "setup"  # (RobotSetup): assemble the robot; answers its stack's timer
-    TICK = "tick"  # (now, BodyState): step the brain; answers (transmissions, timer, wheel command)
-    FLUSH = "flush"  # (now,): what the stack sends now; answers as TICK does
-    RECEIVE = "receive"  # (frame, now, rssi, relay delay): a frame heard; answers (transmissions, timer)
-    TIMER = "timer"  # (now,): the stack's timer is due; answers (transmissions, timer)
-    GET = "get"  # (path,): read an attribute; answers (Answer, value or None)
-    CALL = "call"  # (path, args, kwargs): call a method; answers its value
-    STATS = "stats"  # (): pid and CPU time
-    BYE = "bye"  # (): halt and leave
+_VERSION = 1
+_TAG_BYTES = 16
+_HEADER = struct.Struct(">BB16sQB")  # version, direction, run nonce, counter, length of the robot's name
+_REQUEST, _REPLY = 1, 2
+#: Replies waiting for one robot's call at most; more are refused (a flood on its reply key).
+_MAX_WAITING = 256
+#: Requests and replies are sent at once (not batched) and never dropped under congestion.
+_PROMPT = {"congestion_control": zenoh.CongestionControl.BLOCK, "express": True}
+#: Refusals logged one by one; after these, one line per power of ten (a flood is not a log flood).
+_LOGGED_REFUSALS = 20
 
 
-class Answer(enum.Enum):
-    """What a GET found: data (copied), a method, or another object (read by reference)."""
+def control_key_from_team_key(team_key: bytes) -> bytes:
+    """The control plane's 32-byte HMAC key: HKDF-SHA256(team key, salt b"rescuemesh v1",
+    info b"process control plane authentication")."""
+    return hkdf_sha256(team_key, CONTROL_KEY_SALT, CONTROL_KEY_INFO, 32)
 
-    VALUE = "value"
-    CALLABLE = "callable"
-    REFERENCE = "reference"
+
+#: The key of a world and robots run by hand without a key file: public (it is in this source), so
+#: it keeps out a stray or naive peer only. Give both sides --key FILE on a network (docs/processes.md).
+PUBLIC_CONTROL_KEY = hkdf_sha256(b"", CONTROL_KEY_SALT, b"process control plane public development key", 32)
 
 
 class ControlError(RuntimeError):
@@ -81,38 +81,51 @@ class RemoteError(RuntimeError):
     """A call raised inside the robot process; the message carries the robot's traceback."""
 
 
-def _enum_member(cls, name: str):
-    """What pickle's `getattr(EnumClass, "MEMBER")` does for an enum member, and nothing else."""
-    if isinstance(cls, type) and issubclass(cls, enum.Enum) and cls.__module__.startswith("rescuemesh.") \
-            and name in cls.__members__:
-        return cls[name]
-    raise ControlError(f"refused to decode an attribute {name!r} of {cls!r} from the control plane")
+class Refusals:
+    """Messages refused (forged, replayed, malformed, unexpected): counted, and logged one line each
+    (the first ones; then one line per power of ten)."""
+
+    def __init__(self, who: str) -> None:
+        self.who, self.count = who, 0
+        self._lock = threading.Lock()
+
+    def refuse(self, reason: str) -> None:
+        with self._lock:
+            self.count += 1
+            count = self.count
+        if count <= _LOGGED_REFUSALS or str(count).rstrip("0") == "1":
+            log.warning("%s: refused a control message (%d so far): %s", self.who, count, reason)
 
 
-class _SafeUnpickler(pickle.Unpickler):
-    def find_class(self, module: str, name: str):
-        if (module, name) == ("builtins", "getattr"):
-            return _enum_member
-        if module == "rescuemesh" or module.startswith("rescuemesh."):
-            return super().find_class(module, name)
-        if module == "builtins" and name in _SAFE_BUILTINS:
-            return getattr(builtins, name)
-        if (module, name) in _SAFE_GLOBALS:
-            return super().find_class(module, name)
-        raise ControlError(f"refused to decode {module}.{name} from the control plane")
+class ControlKey:
+    """Seals and opens control messages with one run's key."""
 
+    def __init__(self, key: bytes) -> None:
+        if len(key) < 16:
+            raise ValueError("a control key has at least 16 bytes")
+        self._key = bytes(key)
 
-def dumps(value: Any) -> bytes:
-    return pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL)
+    def seal(self, direction: int, nonce: bytes, counter: int, robot: str, body: bytes) -> bytes:
+        name = robot.encode()
+        signed = _HEADER.pack(_VERSION, direction, nonce, counter, len(name)) + name + body
+        return hmac.digest(self._key, signed, "sha256")[:_TAG_BYTES] + signed
 
-
-def loads(data: bytes) -> Any:
-    try:
-        return _SafeUnpickler(io.BytesIO(data)).load()
-    except ControlError:
-        raise
-    except Exception as error:  # truncated or garbage bytes
-        raise ControlError(f"undecodable control message ({type(error).__name__}: {error})") from None
+    def open(self, data: bytes) -> tuple[int, bytes, int, str, bytes]:
+        """(direction, nonce, counter, robot, body) of an authentic message; ControlError otherwise."""
+        if len(data) < _TAG_BYTES + _HEADER.size:
+            raise ControlError(f"{len(data)} bytes: too short to be a control message")
+        tag, signed = data[:_TAG_BYTES], data[_TAG_BYTES:]
+        if not hmac.compare_digest(tag, hmac.digest(self._key, signed, "sha256")[:_TAG_BYTES]):
+            raise ControlError("not authenticated with this run's control key")
+        version, direction, nonce, counter, length = _HEADER.unpack_from(signed)
+        if version != _VERSION:
+            raise ControlError(f"control message version {version}, expected {_VERSION}")
+        end = _HEADER.size + length
+        try:
+            robot = signed[_HEADER.size:end].decode()
+        except UnicodeDecodeError:
+            raise ControlError("a robot name that is not UTF-8") from None
+        return direction, nonce, counter, robot, signed[end:]
 
 
 @dataclass(frozen=True)
@@ -140,20 +153,29 @@ class Keys:
     def robot_alive(self, name: str) -> str:
         return f"rescuemesh/{self.run}/robot/{name}/alive"
 
-    def robot_rpc(self, name: str) -> str:
-        return f"rescuemesh/{self.run}/robot/{name}/rpc"
+    def robot_request(self, name: str) -> str:
+        return f"rescuemesh/{self.run}/robot/{name}/request"
+
+    def robot_reply(self, name: str) -> str:
+        return f"rescuemesh/{self.run}/robot/{name}/reply"
+
+    @property
+    def robots_reply(self) -> str:
+        return f"rescuemesh/{self.run}/robot/*/reply"
 
     @staticmethod
     def robot_of(key: str) -> str:
-        """The robot name in a `.../robot/<name>/alive` key."""
+        """The robot name in a `.../robot/<name>/alive` (or `/reply`) key."""
         parts = str(key).split("/")
         return parts[-2]
 
 
 def open_session(*, listen: list[str] = (), connect: list[str] = ()) -> zenoh.Session:
     """A Zenoh peer that listens and connects only where told, multicast scouting off: the same
-    session settings as the robots' frame link (transport/zenoh_link.py)."""
+    session settings as the robots' frame link (transport/zenoh_link.py), with room for the largest
+    control message (a set-up carries the occupancy grid)."""
     config = session_config(listen, connect)  # ValueError for a bad endpoint
+    config.insert_json5("transport/link/rx/max_message_size", str(MAX_MESSAGE_BYTES + 4096))
     try:
         return zenoh.open(config)
     except zenoh.ZError as error:
@@ -161,85 +183,194 @@ def open_session(*, listen: list[str] = (), connect: list[str] = ()) -> zenoh.Se
                            f"{str(error).splitlines()[0]}") from None
 
 
+def _payload(carrier) -> bytes:
+    payload = carrier.payload
+    if payload is None:
+        return b""
+    if len(payload) > MAX_MESSAGE_BYTES + _TAG_BYTES + _HEADER.size + 255:
+        raise ControlError(f"{len(payload)} bytes: over the control message limit")
+    return payload.to_bytes()
+
+
 class CallServer:
-    """A robot's side: calls arrive on its queryable and wait in a queue for the main thread, which
-    answers them one at a time (the brain is not thread-safe). Other wake-ups (the world's token
-    gone, a signal) go into the same queue as plain strings."""
+    """A robot's side: authenticated requests from its world on its request key, answered at once on
+    Zenoh's thread by `handler`, one at a time (the brain is not thread-safe), on its reply key. A
+    request that is forged, replayed, malformed or not for this robot is refused (logged, counted)
+    and not answered.
 
-    def __init__(self, session: zenoh.Session, key: str) -> None:
-        self.inbox: queue.Queue = queue.Queue()
-        self._queryable = session.declare_queryable(key, self.inbox.put)
+    A set-up must carry this process's nonce (its answer to a Hello), so a set-up recorded in another
+    run is refused; the set-up binds the world's run nonce, and from then on each request's counter
+    must exceed the last one accepted."""
 
-    def wake(self, reason: str) -> None:
-        self.inbox.put(reason)
+    def __init__(self, session: zenoh.Session, keys: Keys, name: str, control_key: ControlKey,
+                 handler: Callable[[Any], Any]) -> None:
+        self.name, self.control_key, self.handler = name, control_key, handler
+        self.nonce = os.urandom(16)  # this process's: a set-up must echo it
+        self.refusals = Refusals(name)
+        self.calls = 0
+        self._world: bytes | None = None  # the run nonce of the world that set us up
+        self._last = 0
+        self._lock = threading.Lock()
+        self._publisher = session.declare_publisher(keys.robot_reply(name), **_PROMPT)
+        self._subscriber = session.declare_subscriber(keys.robot_request(name), self._on_request)
 
-    @staticmethod
-    def answer(query, handler: Callable[[Any], Any]) -> None:
-        """Decode the call, run `handler`, reply with its value or its exception."""
+    def _on_request(self, sample) -> None:
+        with self._lock:
+            reply = self._answer(sample)
+        if reply is not None:
+            try:
+                self._publisher.put(reply)
+            except zenoh.ZError:
+                pass  # the session is closing
+
+    def _answer(self, sample) -> bytes | None:
         try:
-            try:
-                request = loads(query.payload.to_bytes() if query.payload is not None else b"")
-                reply = ("ok", handler(request))
-            except Exception as error:  # the caller re-raises it: one robot's bug is not this plane's
-                import traceback
+            direction, nonce, counter, robot, body = self.control_key.open(_payload(sample))
+            if direction != _REQUEST or robot != self.name:
+                raise ControlError(f"a {'reply' if direction == _REPLY else 'message'} for {robot!r} on {self.name}'s key")
+            request = decode(body)
+            if type(request) not in msg.ANSWERS:
+                raise ControlError(f"{type(request).__name__} is not a request")
+            if isinstance(request, msg.RobotSetup):
+                if request.robot_nonce != self.nonce:
+                    raise ControlError("a set-up that does not echo this process's nonce (replayed?)")
+                if nonce == self._world and counter <= self._last:
+                    raise ControlError(f"replayed set-up (counter {counter} <= {self._last})")
+                self._world = nonce
+            elif not isinstance(request, msg.Hello):
+                if nonce != self._world:
+                    raise ControlError("a request from another run than the one that set this robot up")
+                if counter <= self._last:
+                    raise ControlError(f"replayed request (counter {counter} <= {self._last})")
+        except (ControlError, CodecError) as error:
+            self.refusals.refuse(str(error))
+            return None
+        if not isinstance(request, msg.Hello):
+            self._last = counter
+        self.calls += 1
+        try:
+            reply = msg.HelloReply(self.nonce) if isinstance(request, msg.Hello) else self.handler(request)
+            payload = encode(reply)
+        except Exception as error:  # the caller re-raises it: one robot's bug is not this plane's
+            import traceback
 
-                reply = ("error", f"{type(error).__name__}: {error}", traceback.format_exc())
-            try:
-                payload = dumps(reply)
-            except Exception as error:
-                payload = dumps(("error", f"reply is not data ({type(error).__name__}: {error})", ""))
-            query.reply(query.key_expr, payload)
-        finally:
-            query.drop()  # the reply completes only when the query is dropped
+            payload = encode(msg.ErrorReply(f"{type(error).__name__}: {error}", traceback.format_exc()))
+        return self.control_key.seal(_REPLY, nonce, counter, self.name, payload)
 
     def close(self) -> None:
-        self._queryable.undeclare()
+        self._subscriber.undeclare()
+        self._publisher.undeclare()
 
 
 class CallClient:
-    """The world's side: calls to robots by name, one at a time or to several at once."""
+    """The world's side: calls to robots by name, one at a time or to several at once. A reply that
+    does not authenticate as the robot asked, for this call, is dropped and counted; so is any reply
+    beyond _MAX_WAITING queued for one robot (a flood)."""
 
-    def __init__(self, session: zenoh.Session, keys: Keys, *, timeout_s: float = CALL_TIMEOUT_S) -> None:
-        self.session, self.keys, self.timeout_s = session, keys, timeout_s
+    def __init__(self, session: zenoh.Session, keys: Keys, control_key: ControlKey, *,
+                 timeout_s: float = CALL_TIMEOUT_S) -> None:
+        self.session, self.keys, self.control_key, self.timeout_s = session, keys, control_key, timeout_s
+        self.nonce = os.urandom(16)  # this run's
+        self.refusals = Refusals("world")
         self.calls = 0
+        self._counter = itertools.count(1)
+        self._inbox: dict[str, queue.SimpleQueue] = {}
+        self._publishers: dict[str, Any] = {}
+        self._subscriber = session.declare_subscriber(keys.robots_reply, self._on_reply)
 
-    def call(self, robot: str, request: Any) -> Any:
-        return self._result(robot, self._send(robot, request))
+    def expect(self, robot: str) -> None:
+        """Robot `robot` (re)joins: forget what its previous process left (late replies, its leaving)."""
+        self._inbox[robot] = queue.SimpleQueue()
+
+    def gone(self, robot: str) -> None:
+        """Robot `robot`'s process is gone (its token went): a call waiting for it ends now."""
+        inbox = self._inbox.get(robot)
+        if inbox is not None:
+            inbox.put(None)
+
+    def _on_reply(self, sample) -> None:
+        robot = Keys.robot_of(str(sample.key_expr))
+        inbox = self._inbox.get(robot)
+        try:
+            if inbox is None:
+                raise ControlError(f"a reply for {robot[:40]!r}, which no call waits for")
+            if inbox.qsize() >= _MAX_WAITING:
+                raise ControlError(f"more than {_MAX_WAITING} replies waiting for {robot}")
+            inbox.put(_payload(sample))
+        except ControlError as error:
+            self.refusals.refuse(str(error))
+
+    def call(self, robot: str, request: Any, *, timeout_s: float | None = None) -> Any:
+        return self._result(robot, request, self._send(robot, request, timeout_s))
 
     def call_all(self, requests: dict[str, Any], *, tolerate: bool = False) -> dict[str, Any]:
         """The same moment's calls to several robots, sent together, answered in parallel. With
         `tolerate`, a robot that does not answer gets its ControlError as its value instead of raising."""
-        pending = {robot: self._send(robot, request) for robot, request in requests.items()}
+        pending = {robot: (request, self._send(robot, request, None)) for robot, request in requests.items()}
         answers = {}
-        for robot, handler in pending.items():
+        for robot, (request, sent) in pending.items():
             try:
-                answers[robot] = self._result(robot, handler)
+                answers[robot] = self._result(robot, request, sent)
             except ControlError as error:
                 if not tolerate:
                     raise
                 answers[robot] = error
         return answers
 
-    def _send(self, robot: str, request: Any):
+    def _send(self, robot: str, request: Any, timeout_s: float | None):
         self.calls += 1
-        return self.session.get(self.keys.robot_rpc(robot), payload=dumps(request), timeout=self.timeout_s)
+        counter = next(self._counter)
+        payload = self.control_key.seal(_REQUEST, self.nonce, counter, robot, encode(request))
+        if robot not in self._inbox:
+            self.expect(robot)
+        publisher = self._publishers.get(robot)
+        if publisher is None:
+            publisher = self._publishers[robot] = self.session.declare_publisher(self.keys.robot_request(robot),
+                                                                                 **_PROMPT)
+        publisher.put(payload)
+        return counter, self.timeout_s if timeout_s is None else timeout_s
 
-    def _result(self, robot: str, handler) -> Any:
-        try:
-            reply = handler.recv()
-        except Exception:  # the reply channel closed with no reply: nothing serves that key
-            raise ControlError(f"{robot} did not answer (its process is gone?)") from None
-        if reply.ok is None:
-            raise ControlError(f"{robot} did not answer within {self.timeout_s:g} s")
-        answer = loads(reply.ok.payload.to_bytes())
-        if answer[0] == "ok":
-            return answer[1]
-        raise RemoteError(f"{robot}: {answer[1]}\n--- in the robot process ---\n{answer[2]}")
+    def _result(self, robot: str, request: Any, sent) -> Any:
+        counter, timeout_s = sent
+        expected = msg.ANSWERS[type(request)]
+        inbox = self._inbox[robot]
+        deadline = time.monotonic() + timeout_s
+        refused = 0
+        while True:
+            try:
+                data = inbox.get(timeout=max(0.0, deadline - time.monotonic()))
+            except queue.Empty:
+                if refused:
+                    raise ControlError(f"{robot} did not answer with the run's control key within {timeout_s:g} s "
+                                       f"({refused} repl{'y' if refused == 1 else 'ies'} refused)") from None
+                raise ControlError(f"{robot} did not answer within {timeout_s:g} s (its process is gone, or it "
+                                   f"does not hold the run's control key?)") from None
+            if data is None:
+                raise ControlError(f"{robot}'s process is gone (its liveliness token went)")
+            try:
+                direction, nonce, count, name, body = self.control_key.open(data)
+                if direction != _REPLY or nonce != self.nonce or count != counter or name != robot:
+                    raise ControlError(f"a reply that is not {robot}'s to call {counter} (replayed or late?)")
+                answer = decode(body)
+                if isinstance(answer, msg.ErrorReply):
+                    raise RemoteError(f"{robot}: {answer.message}\n--- in the robot process ---\n{answer.traceback}")
+                if type(answer) is not expected:
+                    raise ControlError(f"{type(answer).__name__} does not answer {type(request).__name__}")
+                return answer
+            except (ControlError, CodecError) as error:
+                refused += 1
+                self.refusals.refuse(f"reply for {robot}: {error}")
+
+    def close(self) -> None:
+        self._subscriber.undeclare()
+        for publisher in self._publishers.values():
+            publisher.undeclare()
 
 
 class Liveliness:
     """Who is alive: a subscriber to liveliness tokens under `key` with history, so tokens declared
-    before we looked count. `alive` is a set of keys; `on_change(key, alive)` runs on Zenoh's thread."""
+    before we looked count. `alive` is a set of keys; `on_change(key, alive)` runs on Zenoh's thread.
+    A token admits nobody by itself: the world still has to hear the robot answer with the key."""
 
     def __init__(self, session: zenoh.Session, key: str,
                  on_change: Callable[[str, bool], None] | None = None) -> None:

@@ -1,68 +1,52 @@
 """One robot as its own process: brain, navigation, endpoint, mesh node and its Body, stepped by a
 world process in lockstep over the control plane (runtime/control.py).
 
-Owns: what a robot process holds and answers (set-up, tick, flush, a frame heard, a timer, reads
-and calls into its brain for scenarios and reports), the RemoteBody the world feeds, and the
+Owns: what a robot process answers to each typed request (runtime/control_messages.py: set-up, tick,
+flush, a frame heard, a timer, the mission's commands, report, stats, bye), the status it sends with
+every reply (what changed in its brain since the last one), the RemoteBody the world feeds, and the
 process's life: waiting for the world, halting and leaving when the world is gone.
 Must not know: MuJoCo (the world process owns physics, sensors and the radio medium), scenarios.
 
 A tick from the world carries the simulated time and this robot's body state (pose, odometry, the
-latest scan); the robot steps its brain and answers with what the stack has to send, its next timer
-and the wheel command. A flush, only after the mission script called into this robot, asks again. Every call into the network stack answers with the stack's
-new transmissions and timer, so the world's radio medium runs exactly as it does in one process.
+latest scan); the robot steps its brain and answers with what the stack has to send, its next timer,
+the wheel command and its status. A flush, only after the mission script called into this robot,
+asks again. Every call into the network stack answers with the stack's new transmissions and timer,
+so the world's radio medium runs exactly as it does in one process. There is no request to read or
+call anything by name.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import enum
 import math
 import os
 import queue
 import signal
 import sys
 import time
-from collections import deque
-from dataclasses import dataclass, replace
-from typing import Any
-
-import numpy as np
+from dataclasses import replace
 
 from rescuemesh.body import Body, LaserScan, NoRendererError, RobotKind
 from rescuemesh.geometry import Pose2D
-from rescuemesh.maps import MapModel
 from rescuemesh.nav import Costmap
+from rescuemesh.runtime import control_messages as msg
 from rescuemesh.runtime.assembly import assemble_robot, team_sealer
-from rescuemesh.runtime.config import SimConfig
-from rescuemesh.runtime.control import Answer, Call, CallServer, ControlError, Keys, Liveliness, open_session
+from rescuemesh.runtime.control import (
+    CONTROL_KEY_ENV,
+    PUBLIC_CONTROL_KEY,
+    CallServer,
+    ControlError,
+    ControlKey,
+    Keys,
+    Liveliness,
+    control_key_from_team_key,
+    open_session,
+)
+from rescuemesh.runtime.control_messages import BodyState, RobotSetup
+
+__all__ = ["BodyState", "IDLE_TIMEOUT_S", "RemoteBody", "RobotSetup", "RobotWorker", "StatusTracker", "serve_robot"]
 
 #: A robot that hears nothing from its world this long (s) halts and leaves.
 IDLE_TIMEOUT_S = 60.0
-
-
-@dataclass(frozen=True)
-class BodyState:
-    """What the world tells a robot about its body at a tick. `scan` is None when unchanged."""
-
-    pose: Pose2D
-    odometry: tuple[Pose2D, float, float]
-    scan: LaserScan | None
-
-
-@dataclass(frozen=True)
-class RobotSetup:
-    """What a robot process is told when it joins: who it is, where, on which map, with which
-    settings. The team key never travels: `config.team_key` is None, and with `key_from_seed`
-    False the robot needs `--key FILE` itself."""
-
-    name: str
-    start: Pose2D
-    config: SimConfig
-    map_model: MapModel
-    epoch: int
-    kind: RobotKind
-    top_height: float | None
-    key_from_seed: bool
 
 
 class RemoteBody(Body):
@@ -98,29 +82,81 @@ class RemoteBody(Body):
         self.command = (float(linear), float(angular))
 
 
+class StatusTracker:
+    """What changed in a brain's status since the last delta: the running behaviour, behaviours
+    finished, commands sent or updated, log lines, bulk data received, commands given up."""
+
+    def __init__(self, brain) -> None:
+        self.brain = brain
+        self._running = None
+        self._finished = self._log = self._failed = 0
+        self._outgoing: dict[int, tuple] = {}
+        self._received = (0, None)
+
+    def delta(self) -> msg.StatusDelta:
+        brain = self.brain
+        running = brain.running
+        running_changed = running is not self._running
+        view = None
+        if running_changed:
+            self._running = running
+            if running is not None:
+                behaviour = running.behaviour
+                view = msg.RunningView(behaviour.name, running.started_s, _waypoints(behaviour, "waypoints"),
+                                       _waypoints(behaviour, "skipped"))
+        finished = brain.finished[self._finished:]
+        self._finished += len(finished)
+        outgoing = []
+        for seq, command in brain.outgoing.items():
+            key = (command.result, command.reason, command.sends, command.hops, command.failed)
+            if self._outgoing.get(seq) != key:
+                self._outgoing[seq] = key
+                outgoing.append(command)
+        log = list(brain.log)
+        total = len(log) + getattr(brain, "log_dropped", 0)  # a bounded log counts what it dropped
+        new = log[len(log) - min(len(log), total - self._log):] if total > self._log else []
+        self._log = total
+        received = brain.received_data
+        key = (len(received), received[-1] if received else None)
+        received_data = None
+        if key[0] != self._received[0] or key[1] is not self._received[1]:
+            self._received = key
+            received_data = list(received)
+        failed = brain.commands_failed
+        return msg.StatusDelta(running_changed, view, list(finished), outgoing, new, received_data, failed)
+
+
+def _waypoints(behaviour, name: str):
+    value = getattr(behaviour, name, None)
+    return list(value) if value is not None else None
+
+
 class RobotWorker:
-    """Answers the world's calls for one robot. `done` turns True after Call.BYE."""
+    """Answers the world's typed requests for one robot. `done` turns True after Bye."""
 
     def __init__(self, name: str, team_key: bytes | None = None) -> None:
         self.name, self.team_key = name, team_key
-        self.brain = self.stack = self.body = None
+        self.brain = self.stack = self.body = self.status = None
         self.done = False
-        self._handlers = {Call.SETUP: self._setup, Call.TICK: self._tick, Call.FLUSH: self._flush,
-                          Call.RECEIVE: self._receive, Call.TIMER: self._timer, Call.GET: self._get,
-                          Call.CALL: self._call, Call.STATS: self._stats, Call.BYE: self._bye}
+        self._handlers = {msg.RobotSetup: self._setup, msg.Tick: self._tick, msg.Flush: self._flush,
+                          msg.Receive: self._receive, msg.Timer: self._timer, msg.NavigateTo: self._navigate_to,
+                          msg.Command: self._command, msg.Send: self._send, msg.Report: self._report,
+                          msg.Stats: self._stats, msg.Bye: self._bye}
 
-    def handle(self, request: tuple) -> Any:
-        kind, *args = request
-        if self.brain is None and kind not in (Call.SETUP, Call.STATS, Call.BYE):
-            raise ControlError(f"{self.name}: {kind.value} before set-up")
-        return self._handlers[kind](*args)
+    def handle(self, request):
+        handler = self._handlers.get(type(request))
+        if handler is None:
+            raise ControlError(f"{self.name}: {type(request).__name__} is not a request")
+        if self.brain is None and not isinstance(request, (msg.RobotSetup, msg.Stats, msg.Bye)):
+            raise ControlError(f"{self.name}: {type(request).__name__} before set-up")
+        return handler(request)
 
     def halt(self) -> None:
         """Stop the wheels (the world applies the command; a real body would stop now)."""
         if self.body is not None:
             self.body.set_velocity(0.0, 0.0)
 
-    def _setup(self, setup: RobotSetup):
+    def _setup(self, setup: msg.RobotSetup) -> msg.SetupReply:
         if setup.name != self.name:
             raise ControlError(f"set-up for {setup.name} reached {self.name}")
         config = setup.config
@@ -129,97 +165,107 @@ class RobotWorker:
         elif not setup.key_from_seed and config.secure:
             raise ControlError(f"{self.name}: this world uses a team key file: start the robot with --key FILE")
         self.body = RemoteBody(self.name, setup.start, setup.kind, setup.top_height)
-        self.brain, self.stack = assemble_robot(self.name, self.body, Costmap(setup.map_model.grid), config,
-                                                team_sealer(config),
-                                                setup.map_model.bases.get(self.name, setup.start), epoch=setup.epoch)
-        return self.stack.get_timer()
+        self.brain, self.stack = assemble_robot(self.name, self.body, Costmap(setup.grid), config,
+                                                team_sealer(config), setup.base, epoch=setup.epoch)
+        self.status = StatusTracker(self.brain)
+        return msg.SetupReply(self.stack.get_timer())
 
-    def _tick(self, now: float, state: BodyState):
+    def _tick(self, tick: msg.Tick) -> msg.TickReply:
         """Step the brain and answer as a flush would: the world needs no flush unless the mission
         script calls into this robot before the tick ends (the frames answered here are the world's)."""
-        self.body.update(state)
-        self.brain.step(now)
-        return self._flush(now)
+        self.body.update(tick.body)
+        self.brain.step(tick.now)
+        return self._flush(tick)
 
-    def _flush(self, now: float):
-        return self.stack.transmissions(now), self.stack.get_timer(), self.body.command
+    def _flush(self, request) -> msg.TickReply:
+        now = request.now
+        return msg.TickReply(self.stack.transmissions(now), self.stack.get_timer(), self.body.command,
+                             self.status.delta())
 
-    def _receive(self, data: bytes, now: float, rssi_dbm: float | None, relay_delay_s: float):
-        self.stack.receive(data, now, rssi_dbm=rssi_dbm, relay_delay_s=relay_delay_s)
-        return self.stack.transmissions(now), self.stack.get_timer()
+    def _receive(self, frame: msg.Receive) -> msg.StackReply:
+        self.stack.receive(frame.data, frame.now, rssi_dbm=frame.rssi_dbm, relay_delay_s=frame.relay_delay_s)
+        return msg.StackReply(self.stack.transmissions(frame.now), self.stack.get_timer())
 
-    def _timer(self, at: float):
-        self.stack.handle_timer(at)
-        return self.stack.transmissions(at), self.stack.get_timer()
+    def _timer(self, timer: msg.Timer) -> msg.StackReply:
+        self.stack.handle_timer(timer.now)
+        return msg.StackReply(self.stack.transmissions(timer.now), self.stack.get_timer())
 
-    def _resolve(self, path: tuple[str, ...]):
-        roots = {"brain": self.brain, "stack": self.stack, "body": self.body}
-        if not path or path[0] not in roots or any(p.startswith("_") for p in path):
-            raise AttributeError(f"no public attribute {'.'.join(path)!r} on {self.name}")
-        value = roots[path[0]]
-        for part in path[1:]:
-            value = getattr(value, part)
-        return value
+    def _navigate_to(self, request: msg.NavigateTo) -> msg.CommandReply:
+        self.brain.navigate_to(request.goal, request.now)
+        return msg.CommandReply(None, self.status.delta())
 
-    def _get(self, path: tuple[str, ...]):
-        """(Answer.VALUE, v) for data (is_data), (Answer.CALLABLE, None) for a method, (Answer.REFERENCE,
-        None) for any other object: a behaviour with its navigation and costmap stays here, and the
-        world reads what it needs of it."""
-        value = self._resolve(path)
-        if callable(value):
-            return Answer.CALLABLE, None
-        return (Answer.VALUE, value) if is_data(value) else (Answer.REFERENCE, None)
+    def _command(self, request: msg.Command) -> msg.CommandReply:
+        brain, kind, peer, now = self.brain, request.kind, request.peer, request.now
+        if kind is msg.CommandKind.GOTO:
+            if request.goal is None:
+                raise ControlError("a Goto command needs its goal")
+            seq = brain.command_goto(peer, request.goal, now)
+        elif kind is msg.CommandKind.MOVE_AROUND:
+            if request.radius_m is None:
+                raise ControlError("a MoveAround command needs its radius")
+            seq = brain.command_move_around(peer, request.radius_m, now)
+        else:
+            seq = {msg.CommandKind.RETURN: brain.command_return, msg.CommandKind.FOLLOW: brain.command_follow,
+                   msg.CommandKind.STOP: brain.command_stop}[kind](peer, now)
+        return msg.CommandReply(seq, self.status.delta())
 
-    def _call(self, path: tuple[str, ...], args: tuple, kwargs: dict):
-        return self._resolve(path)(*args, **kwargs)
+    def _send(self, request: msg.Send) -> msg.CommandReply:
+        seq = self.brain.send(request.peer, request.message, request.now)
+        return msg.CommandReply(seq, self.status.delta())
+
+    def _report(self, request: msg.Report) -> msg.ReportReply:
+        node = self.stack.node
+        return msg.ReportReply(self.brain.endpoint.stats, node.stats, dict(self.stack.hops_histogram),
+                               list(node.neighbours()))
 
     @staticmethod
-    def _stats() -> dict:
-        return {"pid": os.getpid(), "cpu_s": round(time.process_time(), 3)}
+    def _stats(request: msg.Stats) -> msg.StatsReply:
+        return msg.StatsReply(os.getpid(), round(time.process_time(), 3))
 
-    def _bye(self) -> None:
+    def _bye(self, request: msg.Bye) -> msg.Done:
         self.halt()
         self.done = True
-
-
-#: Values that are data by themselves.
-_SCALARS = (type(None), bool, int, float, complex, str, bytes, enum.Enum, np.generic)
-#: Arrays up to this many elements count as data (a scan, a path); larger ones stay in the robot.
-_MAX_ARRAY_ELEMENTS = 1 << 16
-
-
-def is_data(value, depth: int = 0) -> bool:
-    """Whether `value` is plain data worth copying to the world: scalars, enums, small arrays, and
-    lists, tuples, sets, dicts and dataclasses of data, nested at most 8 deep."""
-    if isinstance(value, _SCALARS):
-        return True
-    if depth >= 8:
-        return False
-    if isinstance(value, np.ndarray):
-        return value.size <= _MAX_ARRAY_ELEMENTS and value.dtype != object
-    if isinstance(value, (list, tuple, set, frozenset, deque)):
-        return all(is_data(item, depth + 1) for item in value)
-    if isinstance(value, dict):
-        return all(is_data(k, depth + 1) and is_data(v, depth + 1) for k, v in value.items())
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return all(is_data(getattr(value, f.name), depth + 1) for f in dataclasses.fields(value))
-    return False
+        return msg.Done()
 
 
 def _terminate(signum, frame):
     raise SystemExit(0)
 
 
+def control_key_for(team_key: bytes | None) -> ControlKey:
+    """The control key a robot process proves itself with: from its team key file; else the one its
+    parent put in the environment (`run --processes`: a fresh key per run); else the public one."""
+    if team_key is not None:
+        return ControlKey(control_key_from_team_key(team_key))
+    given = os.environ.pop(CONTROL_KEY_ENV, None)
+    if given:
+        try:
+            return ControlKey(bytes.fromhex(given))
+        except ValueError:
+            raise ControlError(f"{CONTROL_KEY_ENV} is not a hex key of at least 16 bytes") from None
+    return ControlKey(PUBLIC_CONTROL_KEY)
+
+
 def serve_robot(name: str, connect: str, *, run: str = "default", team_key: bytes | None = None,
                 wait_s: float = 30.0, idle_timeout_s: float = IDLE_TIMEOUT_S, out=sys.stdout) -> int:
     """Run robot `name` for the world at `connect` until the world says bye or is gone. Returns the
-    exit status: 0 after bye or when the world left, 1 when no world was found."""
+    exit status: 0 after bye or when the world left, 1 when no world was found. Requests are answered
+    on Zenoh's thread as they come; this thread waits for the end (bye, the world gone, a signal)."""
     keys = Keys(run)
+    control_key = control_key_for(team_key)
     signal.signal(signal.SIGTERM, _terminate)
     session = open_session(connect=[connect])
     worker = RobotWorker(name, team_key)
-    server = CallServer(session, keys.robot_rpc(name))
-    world = Liveliness(session, keys.world_alive, on_change=lambda key, up: None if up else server.wake("world gone"))
+    events: queue.Queue = queue.Queue()
+
+    def handle(request):
+        reply = worker.handle(request)
+        if worker.done:
+            events.put("bye")
+        return reply
+
+    server = CallServer(session, keys, name, control_key, handle)
+    world = Liveliness(session, keys.world_alive, on_change=lambda key, up: None if up else events.put("world gone"))
     token = None
     try:
         if not world.wait_for(bool, wait_s):
@@ -227,25 +273,31 @@ def serve_robot(name: str, connect: str, *, run: str = "default", team_key: byte
             return 1
         token = session.liveliness().declare_token(keys.robot_alive(name))
         print(f"{name}: joined the world at {connect} (run {run!r})", file=out, flush=True)
-        while not worker.done:
+        calls, quiet_since = server.calls, time.monotonic()
+        while True:
             try:
-                item = server.inbox.get(timeout=idle_timeout_s)
+                item = events.get(timeout=min(1.0, idle_timeout_s))
             except queue.Empty:
+                if server.calls != calls:
+                    calls, quiet_since = server.calls, time.monotonic()
+                if time.monotonic() - quiet_since < idle_timeout_s:
+                    continue
                 item = f"no call from the world in {idle_timeout_s:g} s"
-            if isinstance(item, str):
+            if item == "bye":
+                print(f"{name}: the world's run is over: wheels halted, leaving", file=out, flush=True)
+            else:
                 print(f"{name}: {item}: wheels halted, leaving", file=out, flush=True)
-                break
-            CallServer.answer(item, worker.handle)
-        else:
-            print(f"{name}: the world's run is over: wheels halted, leaving", file=out, flush=True)
+            break
+        if server.refusals.count:
+            print(f"{name}: {server.refusals.count} control messages refused", file=out, flush=True)
         return 0
     except KeyboardInterrupt:
         print(f"{name}: interrupted: wheels halted, leaving", file=out, flush=True)
         return 0
     finally:
+        server.close()  # no more requests (one being answered finishes first)
         worker.halt()
         if token is not None:
             token.undeclare()
         world.close()
-        server.close()
         session.close()

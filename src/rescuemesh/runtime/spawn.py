@@ -8,6 +8,7 @@ that the run can start its robots before it imports the world (they import and c
 from __future__ import annotations
 
 import ctypes
+import os
 import signal
 import socket
 import subprocess
@@ -41,15 +42,24 @@ class RobotProcesses:
         self.connect, self.run, self.log_dir, self.key_file = connect, run, Path(log_dir), key_file
         self.log_dir.mkdir(parents=True, exist_ok=True)
         self.procs: dict[str, subprocess.Popen] = {}
+        #: Without a key file, a fresh control key for this run, handed to each robot process in its
+        #: environment (not on its command line, which every user of the host can read).
+        self.control_key: bytes | None = os.urandom(32) if key_file is None else None
 
     def start(self, name: str) -> subprocess.Popen:
         command = [sys.executable, "-m", "rescuemesh", "robot", "--name", name, "--connect", self.connect,
                    "--run-id", self.run]
         if self.key_file is not None:
             command += ["--key", str(self.key_file)]
+        from rescuemesh.runtime.control import CONTROL_KEY_ENV
+
+        env = dict(os.environ)
+        env.pop(CONTROL_KEY_ENV, None)
+        if self.control_key is not None:
+            env[CONTROL_KEY_ENV] = self.control_key.hex()
         with open(self.log_dir / f"{name}.log", "ab" if name in self.procs else "wb") as log:
             proc = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
-                                    preexec_fn=_die_with_parent)
+                                    preexec_fn=_die_with_parent, env=env)
         self.procs[name] = proc
         return proc
 

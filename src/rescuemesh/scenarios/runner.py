@@ -100,19 +100,20 @@ def _runtime(scenario, map_model, config, processes: ProcessOptions | None, out_
     """The one-process runtime, or a world with its robots in processes (closed by `cleanup`)."""
     if processes is None:
         return SimRuntime(map_model, scenario.starts(), config)
-    from rescuemesh.runtime.process_world import ProcessRuntime, WorldHost
+    from rescuemesh.runtime.process_world import ProcessRuntime, WorldHost, world_control_key
     from rescuemesh.runtime.spawn import RobotProcesses, free_endpoint
 
     listen = processes.listen or free_endpoint()
-    host = WorldHost(listen, processes.run_id)
+    team = processes.team
+    if processes.spawn and team is None:
+        log_dir = out_dir / "processes" if out_dir is not None else \
+            Path(cleanup.enter_context(tempfile.TemporaryDirectory()))
+        team = RobotProcesses(listen, processes.run_id, log_dir, key_file=processes.key_file)
+    control_key = world_control_key(scenario.options.team_key, team.control_key if processes.spawn else None)
+    host = WorldHost(listen, processes.run_id, control_key=control_key)
     cleanup.callback(host.close)
     starts = scenario.starts()
     if processes.spawn:
-        team = processes.team
-        if team is None:
-            log_dir = out_dir / "processes" if out_dir is not None else \
-                Path(cleanup.enter_context(tempfile.TemporaryDirectory()))
-            team = RobotProcesses(listen, processes.run_id, log_dir, key_file=processes.key_file)
         cleanup.callback(team.close)
         for name in starts:
             if name not in team.procs:

@@ -1,0 +1,264 @@
+"""The control plane's encoding: msgpack with a closed schema, no pickle.
+
+Owns: which types may cross the control plane (a fixed registry of dataclasses and enums, numpy
+arrays of a few dtypes, plain msgpack values), how each is written, and the checks a decoded value
+passes before anything uses it: every dataclass field against its annotation, every array against
+the dtype allow-list and the size limits. Decoding constructs only registered types, through their
+own constructors (whose own checks run), and resolves no names. Must not know: Zenoh, what the
+calls mean, keys (runtime/control.py authenticates the bytes before they get here).
+
+docs/processes.md lists the types and the wire form of each.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import types
+import typing
+from collections import Counter, deque
+from pathlib import PurePath
+
+import msgpack
+import numpy as np
+
+__all__ = ["CodecError", "MAX_ARRAY_BYTES", "MAX_MESSAGE_BYTES", "decode", "encode", "registered_types"]
+
+#: The largest control message (a set-up carries the occupancy grid: 4000 x 4000 cells at most).
+MAX_MESSAGE_BYTES = 20 << 20
+#: The largest array one message may carry, in bytes, and its largest number of dimensions.
+MAX_ARRAY_BYTES = 16 << 20
+MAX_ARRAY_DIMS = 3
+#: Array dtypes that may cross (numpy's `dtype.str`): numbers and booleans, nothing with objects.
+ARRAY_DTYPES = frozenset({"|b1", "|u1", "|i1", "<u2", "<i2", "<u4", "<i4", "<u8", "<i8", "<f4", "<f8"})
+
+# msgpack extension type codes
+_EXT_ARRAY, _EXT_RECORD, _EXT_ENUM, _EXT_TUPLE = 1, 2, 3, 4
+
+
+class CodecError(ValueError):
+    """Bytes that are not a valid control message, or a value that may not be sent."""
+
+
+def _registry() -> tuple[dict[str, type], dict[str, type]]:
+    """The closed set of dataclasses and enums, by name (imported here, once)."""
+    from rescuemesh.body import LaserScan, RobotKind
+    from rescuemesh.geometry import Pose2D
+    from rescuemesh.maps.grid import OccupancyGrid
+    from rescuemesh.mesh.config import MeshConfig
+    from rescuemesh.mesh.neighbours import NeighbourInfo
+    from rescuemesh.mesh.node import Transmission
+    from rescuemesh.mesh.stats import MeshStats
+    from rescuemesh.protocol import messages as m
+    from rescuemesh.protocol.endpoint import EndpointStats
+    from rescuemesh.robot.behaviours import Waypoint
+    from rescuemesh.robot.policy import Rank
+    from rescuemesh.robot.records import BrainConfig, BrainEvent, FinishedBehaviour, OutgoingCommand
+    from rescuemesh.runtime.config import RadioKind, SimConfig
+    from rescuemesh.runtime import control_messages as c
+
+    records = [Pose2D, LaserScan, OccupancyGrid, MeshConfig, NeighbourInfo, Transmission, MeshStats, EndpointStats,
+               Waypoint, BrainConfig, BrainEvent, FinishedBehaviour, OutgoingCommand, SimConfig, m.Pose,
+               m.Follow, m.ShowCam, m.ShowScan, m.LandOnTop, m.Goto, m.Stop, m.Return, m.MoveAround,
+               *c.MESSAGES]
+    enums = [RobotKind, RadioKind, Rank, m.MessageType, m.ResultCode, m.Reason, m.Capability, m.DataKind,
+             *c.ENUMS]
+    return {cls.__name__: cls for cls in records}, {cls.__name__: cls for cls in enums}
+
+
+_RECORDS: dict[str, type] = {}
+_ENUMS: dict[str, type] = {}
+_FIELDS: dict[type, tuple[tuple[str, typing.Callable], ...]] = {}  # class -> ((field, its check), ...)
+
+
+def _load() -> None:
+    if _RECORDS:
+        return
+    records, enums = _registry()
+    for name, cls in records.items():
+        hints = typing.get_type_hints(cls)
+        _FIELDS[cls] = tuple((f.name, _checker(hints[f.name])) for f in dataclasses.fields(cls) if f.init)
+    _ENUMS.update(enums)
+    _RECORDS.update(records)
+
+
+def registered_types() -> tuple[list[str], list[str]]:
+    """The dataclasses and the enums that may cross, by name (docs/processes.md lists them)."""
+    _load()
+    return sorted(_RECORDS), sorted(_ENUMS)
+
+
+# --- encoding ----------------------------------------------------------------------------------
+
+
+def _default(value):
+    if isinstance(value, enum.Enum):
+        name = type(value).__name__
+        if _ENUMS.get(name) is not type(value):
+            raise CodecError(f"enum {name} may not cross the control plane")
+        return msgpack.ExtType(_EXT_ENUM, _pack([name, value.value]))
+    if isinstance(value, np.ndarray):
+        array = np.ascontiguousarray(value)
+        if array.dtype.str not in ARRAY_DTYPES or array.ndim > MAX_ARRAY_DIMS or array.nbytes > MAX_ARRAY_BYTES:
+            raise CodecError(f"array {array.dtype.str} {array.shape} may not cross the control plane")
+        return msgpack.ExtType(_EXT_ARRAY, _pack([array.dtype.str, list(array.shape), array.tobytes()]))
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, tuple):
+        return msgpack.ExtType(_EXT_TUPLE, _pack(list(value)))
+    if isinstance(value, (deque, frozenset, set)):
+        return list(value)
+    if isinstance(value, dict):  # Counter, OrderedDict, defaultdict: as a plain dict
+        return dict(value)
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        cls = type(value)
+        if _RECORDS.get(cls.__name__) is not cls:
+            raise CodecError(f"{cls.__name__} may not cross the control plane")
+        return msgpack.ExtType(_EXT_RECORD, _pack([cls.__name__, [getattr(value, f) for f, _ in _FIELDS[cls]]]))
+    raise CodecError(f"{type(value).__name__} may not cross the control plane")
+
+
+def _pack(value) -> bytes:
+    return msgpack.packb(value, default=_default, use_bin_type=True, strict_types=True)
+
+
+def encode(value) -> bytes:
+    """The bytes of `value`, which holds only plain values and registered types. CodecError otherwise."""
+    _load()
+    try:
+        data = _pack(value)
+    except CodecError:
+        raise
+    except (TypeError, ValueError, OverflowError) as error:
+        raise CodecError(f"cannot encode a control message: {error}") from None
+    if len(data) > MAX_MESSAGE_BYTES:
+        raise CodecError(f"control message of {len(data)} bytes is over the {MAX_MESSAGE_BYTES}-byte limit")
+    return data
+
+
+# --- decoding ----------------------------------------------------------------------------------
+
+
+def _ext(code: int, data: bytes):
+    if code == _EXT_TUPLE:
+        return tuple(_unpack(data))
+    if code == _EXT_ENUM:
+        item = _unpack(data)
+        if not (isinstance(item, list) and len(item) == 2 and isinstance(item[0], str)):
+            raise CodecError("malformed enum")
+        cls = _ENUMS.get(item[0])
+        if cls is None:
+            raise CodecError(f"unknown enum {item[0][:40]!r}")
+        try:
+            return cls(item[1])
+        except (ValueError, TypeError):
+            raise CodecError(f"{item[1]!r} is not a {cls.__name__}") from None
+    if code == _EXT_ARRAY:
+        return _array(_unpack(data))
+    if code == _EXT_RECORD:
+        return _record(_unpack(data))
+    raise CodecError(f"unknown extension type {code}")
+
+
+def _array(item) -> np.ndarray:
+    if not (isinstance(item, list) and len(item) == 3 and isinstance(item[0], str) and isinstance(item[1], list)
+            and isinstance(item[2], bytes)):
+        raise CodecError("malformed array")
+    dtype, shape, raw = item
+    if dtype not in ARRAY_DTYPES:
+        raise CodecError(f"array dtype {dtype[:20]!r} is not allowed")
+    if len(shape) > MAX_ARRAY_DIMS or not all(type(n) is int and 0 <= n <= MAX_ARRAY_BYTES for n in shape):
+        raise CodecError("array shape out of limits")
+    size = np.dtype(dtype).itemsize
+    for n in shape:
+        size *= n
+    if size != len(raw) or size > MAX_ARRAY_BYTES:
+        raise CodecError(f"array of {len(raw)} bytes does not match {dtype} {shape} (limit {MAX_ARRAY_BYTES})")
+    return np.frombuffer(raw, dtype=dtype).reshape(shape).copy()
+
+
+def _record(item):
+    if not (isinstance(item, list) and len(item) == 2 and isinstance(item[0], str) and isinstance(item[1], list)):
+        raise CodecError("malformed record")
+    cls = _RECORDS.get(item[0])
+    if cls is None:
+        raise CodecError(f"unknown record type {item[0][:40]!r}")
+    fields = _FIELDS[cls]
+    if len(item[1]) != len(fields):
+        raise CodecError(f"{cls.__name__} takes {len(fields)} fields, got {len(item[1])}")
+    for (name, check), value in zip(fields, item[1]):
+        if not check(value):
+            raise CodecError(f"{cls.__name__}.{name}: {type(value).__name__} does not match its type")
+    try:
+        return cls(*item[1])
+    except Exception as error:  # the class's own checks (__post_init__) refused it
+        raise CodecError(f"{cls.__name__} refused its fields: {type(error).__name__}: {str(error)[:120]}") from None
+
+
+def _any(value) -> bool:
+    return True
+
+
+def _checker(hint):
+    """A test of whether a decoded value matches a field annotation, compiled once per field (the
+    decoded forms: lists for lists and deques, dicts, tuples, registered records and enums, arrays)."""
+    if hint is typing.Any or hint is object:
+        return _any
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin is typing.Union or origin is types.UnionType:
+        options = tuple(_checker(h) for h in args)
+        return lambda v: any(check(v) for check in options)
+    if hint is type(None):
+        return lambda v: v is None
+    if hint is float:
+        return lambda v: type(v) is float or type(v) is int
+    if hint is int:  # a registered IntEnum (a message type, say) is an int too
+        return lambda v: type(v) is int or isinstance(v, (enum.IntEnum, enum.IntFlag))
+    if hint in (bool, str, bytes):
+        return lambda v: type(v) is hint
+    if origin is None and isinstance(hint, type):
+        if issubclass(hint, PurePath):
+            return lambda v: type(v) is str
+        if issubclass(hint, (enum.Enum, np.ndarray)) or dataclasses.is_dataclass(hint):
+            return lambda v: isinstance(v, hint)
+        if hint in (dict, Counter):
+            return lambda v: type(v) is dict
+        if hint in (list, deque, set, frozenset):
+            return lambda v: type(v) is list
+        if hint is tuple:
+            return lambda v: type(v) is tuple
+        raise TypeError(f"no control-plane check for {hint!r}")
+    if origin is tuple:
+        if len(args) == 2 and args[1] is Ellipsis:
+            item = _checker(args[0])
+            return lambda v: type(v) is tuple and all(item(x) for x in v)
+        items = tuple(_checker(h) for h in args)
+        return lambda v: type(v) is tuple and len(v) == len(items) and all(c(x) for c, x in zip(items, v))
+    if origin in (list, deque, set, frozenset):
+        item = _checker(args[0]) if args else _any
+        return lambda v: type(v) is list and all(item(x) for x in v)
+    if origin in (dict, Counter):
+        key, value = (_checker(args[0]), _checker(int if origin is Counter else args[1])) if args else (_any, _any)
+        return lambda v: type(v) is dict and all(key(k) and value(x) for k, x in v.items())
+    raise TypeError(f"no control-plane check for {hint!r}")
+
+
+def _unpack(data: bytes):
+    return msgpack.unpackb(data, ext_hook=_ext, raw=False, strict_map_key=False, use_list=True)
+
+
+def decode(data: bytes):
+    """The value in `data`, or CodecError (and nothing else) for anything that is not a valid message."""
+    _load()
+    if not isinstance(data, (bytes, bytearray, memoryview)):
+        raise CodecError("a control message is bytes")
+    if len(data) > MAX_MESSAGE_BYTES:
+        raise CodecError(f"control message of {len(data)} bytes is over the {MAX_MESSAGE_BYTES}-byte limit")
+    try:
+        return _unpack(bytes(data))
+    except CodecError:
+        raise
+    except RecursionError:
+        raise CodecError("control message nested too deep") from None
+    except Exception as error:  # msgpack's own: truncated, extra data, bad types, stack limit
+        raise CodecError(f"undecodable control message ({type(error).__name__}: {str(error)[:120]})") from None
