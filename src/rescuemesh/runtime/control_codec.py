@@ -53,7 +53,7 @@ def _registry() -> tuple[dict[str, type], dict[str, type]]:
     from rescuemesh.protocol.endpoint import EndpointStats
     from rescuemesh.robot.behaviours import Waypoint
     from rescuemesh.robot.policy import Rank
-    from rescuemesh.robot.records import BrainConfig, BrainEvent, FinishedBehaviour, OutgoingCommand
+    from rescuemesh.robot.records import BrainConfig, BrainEvent, FinishedBehaviour, LinkLossPolicy, OutgoingCommand
     from rescuemesh.runtime.config import RadioKind, SimConfig
     from rescuemesh.runtime import control_messages as c
 
@@ -61,7 +61,7 @@ def _registry() -> tuple[dict[str, type], dict[str, type]]:
                Waypoint, BrainConfig, BrainEvent, FinishedBehaviour, OutgoingCommand, SimConfig, m.Pose,
                m.Follow, m.ShowCam, m.ShowScan, m.LandOnTop, m.Goto, m.Stop, m.Return, m.MoveAround,
                *c.MESSAGES]
-    enums = [RobotKind, RadioKind, Rank, m.MessageType, m.ResultCode, m.Reason, m.Capability, m.DataKind,
+    enums = [RobotKind, RadioKind, Rank, LinkLossPolicy, m.MessageType, m.ResultCode, m.Reason, m.Capability, m.DataKind,
              *c.ENUMS]
     return {cls.__name__: cls for cls in records}, {cls.__name__: cls for cls in enums}
 

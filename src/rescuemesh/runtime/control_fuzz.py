@@ -71,7 +71,7 @@ def corpus() -> list[bytes]:
                              None, 0)
     values = [
         msg.Hello(), msg.HelloReply(b"n" * 16),
-        msg.RobotSetup("robot_1", pose, SimConfig(), grid, 0, RobotKind.GROUND, None, True, b"n" * 16),
+        msg.RobotSetup("robot_1", pose, SimConfig(), grid, 0, RobotKind.GROUND, None, True, b"n" * 16, pose),
         msg.Tick(1.25, msg.BodyState(pose, (pose, 0.2, 0.1), scan)), msg.Tick(1.3, msg.BodyState(pose, (pose, 0, 0), None)),
         msg.Flush(2.0), msg.Receive(b"\x00" * 20, 2.5, -60.0, 0.01), msg.Timer(3.0),
         msg.NavigateTo(pose, 1.0), msg.Command(msg.CommandKind.GOTO, 2, 1.0, goal=pose),
