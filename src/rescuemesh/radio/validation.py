@@ -39,6 +39,7 @@ from rescuemesh.maps.grid import OccupancyGrid
 from rescuemesh.maps.model import WallMaterial
 from rescuemesh.radio.ble import BleChannel, BleParams
 from rescuemesh.radio.fading import gain_db_distribution
+from rescuemesh.radio.walls import count_walls_many
 
 #: Tag height on Kolakowski's robot (dataset_description.pdf, III: "at the height of 1.3 m").
 KOLAKOWSKI_TAG_HEIGHT_M = 1.3
@@ -250,8 +251,6 @@ def _predict_kolakowski(params: BleParams, grid: OccupancyGrid, places, anchors,
         p = replace(params, tx_antenna_height_m=heights[0], rx_antenna_height_m=heights[1], shadowing_sigma_db=0.0)
         channel = BleChannel(grid, params=p)
         power.append(channel.mean_rx_power_map((ax, ay), places))
-        from rescuemesh.radio.walls import count_walls_many
-
         walls.append(count_walls_many(grid, channel._centre(*channel._cell((ax, ay))), places))
     return np.array(power), np.array(walls)
 
@@ -347,9 +346,15 @@ def _read_danis() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.nd
 
 
 def _lstsq_exponent(sensor: np.ndarray, distance: np.ndarray, rssi: np.ndarray, n_sensors: int):
-    design = np.c_[np.eye(n_sensors)[sensor], -10.0 * np.log10(distance)]
-    coef, *_ = np.linalg.lstsq(design, rssi, rcond=None)
-    return float(coef[-1]), float(np.std(rssi - design @ coef))
+    """Least squares rssi = offset[sensor] - 10 n log10(distance): (n, residual spread). Solved by
+    removing each sensor's means (the offsets' normal equations), not by a dense solver."""
+    x = -10.0 * np.log10(distance)
+    count = np.bincount(sensor, minlength=n_sensors).astype(float)
+    count[count == 0] = 1.0
+    xc = x - (np.bincount(sensor, x, n_sensors) / count)[sensor]
+    yc = rssi - (np.bincount(sensor, rssi, n_sensors) / count)[sensor]
+    n = float(np.sum(xc * yc) / np.sum(xc * xc))
+    return n, float(np.std(yc - n * xc))
 
 
 def validate_danis(params: BleParams | None = None) -> DanisResult:

@@ -17,13 +17,16 @@ from rescuemesh.scenarios.base import CommandRequest, Scenario, ScenarioError, V
 if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJoCo
     from rescuemesh.runtime.sim_loop import SimRuntime
 
-#: Office placements: robot_1 in the north-west of the hall and robot_3 in the far corner of
-#: room_northeast hear each other with probability < 0.1 % (17.6 m, two walls); robot_2 in
-#: room_north hears each of them through one wall with probability >= 0.8 on every shadowing
-#: field of seeds 0-11 (a search over the passage and room_north), out of robot_3's way.
+#: Office placements, for the validated radio model (issue 20; docs/radio.md): robot_1 in the
+#: north-west of the hall and robot_3 in the far corner of room_northeast hear each other with
+#: probability < 0.1 % on every shadowing field of seeds 0-11 (17.7 m, beyond the 5.2 m two-ray
+#: breakpoint, through the hall's and room_north's east walls, load-bearing concrete in the office
+#: map, 14.8 dB each). robot_2 in room_north, one concrete wall from each, hears both with
+#: probability >= 0.98 on those fields (a search over room_north; its old spot (10.5, 8.0) fell to
+#: 0.78 on one field), out of robot_3's way through the passage.
 OFFICE_STARTS = {
     "robot_1": Pose2D(1.2, 8.0, 0.0),
-    "robot_2": Pose2D(10.5, 8.0, 0.0),
+    "robot_2": Pose2D(9.7, 7.4, 0.0),
     "robot_3": Pose2D(18.8, 8.4, 3.14159),
 }
 #: Once robot_3 is this close (m), robot_1 drives its leg so that robot_3 is seen to follow it.
