@@ -131,3 +131,18 @@ def test_vectorised_loss_equals_scalar_on_the_office():
     r0, c0 = office.grid.world_to_cell(*a)
     for p, w, l in zip(pts, walls, loss):
         assert wall_loss_cells(office.grid, r0, c0, *office.grid.world_to_cell(*p), table) == (w, pytest.approx(l))
+
+
+def test_a_wall_is_priced_by_its_dearest_cell_where_materials_meet():
+    # this used to price a wall by the cell the path entered it through: a path entering a
+    # light partition where it meets a concrete wall paid the partition's 2.2 dB (stripes on the map)
+    from rescuemesh.radio.walls import wall_loss_cells, wall_loss_many
+
+    occ = np.zeros((10, 40), dtype=bool)
+    codes = np.zeros((10, 40), dtype=np.uint8)
+    occ[5, 10:14], codes[5, 10:14] = True, 1  # light partition, met end-on
+    occ[:, 14:16], codes[:, 14:16] = True, 3  # concrete wall across the path
+    grid = OccupancyGrid(occ, 0.1, 0.0, 0.0, materials=codes)
+    table = np.array([0.0, 2.2, 3.4, 14.8, 1.9, 0.6])
+    assert wall_loss_cells(grid, 5, 2, 5, 30, table) == (1, pytest.approx(14.8))
+    np.testing.assert_allclose(wall_loss_many(grid, (0.25, 0.55), np.array([[3.05, 0.55]]), table)[1], [14.8])

@@ -4,9 +4,11 @@ Owns: the wall count of a segment (one, between two cells, and one transmitter t
 and the sum of the crossed walls' losses given a loss per material code. Must not know: where
 those losses come from (radio/materials.py), radios, the medium.
 
-Each wall crossed is priced by the material code of the cell where the path enters it (the grid's
-`materials`, 0 when the map tags none): `wall_loss_cells` and `wall_loss_many` add
-`loss_by_code[code]` per wall.
+Each wall crossed (a run of occupied cells along the path) is priced by the dearest material among
+its cells (the grid's `materials`, 0 when the map tags none): `wall_loss_cells` and `wall_loss_many`
+add max(loss_by_code[code]) per wall. The dearest, not the first: where a light partition meets a
+concrete wall a path may enter the junction through the partition's cells and go on through the
+concrete, and pricing it as the partition drew stripes on the radio map.
 
 The path is the straight line between the cells holding its two ends, rasterised with Bresenham's
 algorithm (the cells of `skimage.draw.line`): one cell per step along the major axis, so it never
@@ -128,7 +130,7 @@ _NO_LOSS = np.zeros(256)
 def wall_loss_cells(grid: OccupancyGrid, r0: int, c0: int, r1: int, c1: int,
                     loss_by_code: np.ndarray) -> tuple[int, float]:
     """(walls, loss in dB) on the path from cell (r0, c0) to (r1, c1): the walls as
-    `count_walls_cells` counts them, each priced `loss_by_code[its material code]`."""
+    `count_walls_cells` counts them, each priced by its dearest material (module docstring)."""
     if grid.materials is None:
         walls = _walls_on_line(_padded(grid), r0, c0, r1, c1)
         return walls, walls * float(loss_by_code[0])
@@ -137,7 +139,7 @@ def wall_loss_cells(grid: OccupancyGrid, r0: int, c0: int, r1: int, c1: int,
 
 @numba.njit("Tuple((i8, f8))(b1[:, ::1], u1[:, ::1], f8[::1], i8, i8, i8, i8)", cache=True, nogil=True)
 def _wall_loss_on_line(padded, codes, loss_by_code, r0, c0, r1, c1):  # pragma: no cover - compiled
-    """As `_walls_on_line`, also summing loss_by_code[code] of the cell where each wall is entered."""
+    """As `_walls_on_line`, also summing each wall's dearest loss_by_code[code] over its cells."""
     n_rows = padded.shape[0] - 2
     n_cols = padded.shape[1] - 2
     d_r = r1 - r0
@@ -150,6 +152,8 @@ def _wall_loss_on_line(padded, codes, loss_by_code, r0, c0, r1, c1):  # pragma: 
     steps = max(n, 1)
     walls = 0
     loss = 0.0
+    run = 0.0  # the dearest cell of the wall being crossed
+    in_run = False
     before = False
     for i in range(n + 1):
         minor = (2 * i * minor_span + steps) // (2 * steps)
@@ -164,9 +168,15 @@ def _wall_loss_on_line(padded, codes, loss_by_code, r0, c0, r1, c1):  # pragma: 
         occupied = padded[pr, pc]
         if occupied and not before and i > 0:
             walls += 1
-            loss += loss_by_code[codes[pr, pc]]
+            run = loss_by_code[codes[pr, pc]]
+            in_run = True
+        elif occupied and in_run:
+            run = max(run, loss_by_code[codes[pr, pc]])
+        elif not occupied and in_run:
+            loss += run
+            in_run = False
         before = occupied
-    return walls, loss
+    return walls, loss + (run if in_run else 0.0)
 
 
 def count_walls_many(grid: OccupancyGrid, a: tuple[float, float], points: np.ndarray) -> np.ndarray:
@@ -213,7 +223,13 @@ def wall_loss_many(grid: OccupancyGrid, a: tuple[float, float], points: np.ndarr
             n_rows, n_cols = grid.occupied.shape
             pr = np.minimum(np.maximum(rows[:, 1:], -1), n_rows) + 1
             pc = np.minimum(np.maximum(cols[:, 1:], -1), n_cols) + 1
-            loss[idx] = np.where(entered, table[_padded_codes(grid)[pr, pc]], 0.0).sum(axis=1)
+            # each wall's dearest cell: number the walls along each line, take the max per number
+            wall_no = np.cumsum(entered, axis=1)
+            cell_loss = np.where(occ[:, 1:] & (wall_no > 0), table[_padded_codes(grid)[pr, pc]], 0.0)
+            dearest = np.zeros((len(idx), int(wall_no.max()) + 1))
+            np.maximum.at(dearest, (np.repeat(np.arange(len(idx)), wall_no.shape[1]), wall_no.ravel()),
+                          cell_loss.ravel())
+            loss[idx] = dearest[:, 1:].sum(axis=1)
     if not tagged:
         loss = out * float(table[0])
     return out, loss
