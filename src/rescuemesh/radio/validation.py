@@ -255,13 +255,22 @@ def _predict_kolakowski(params: BleParams, grid: OccupancyGrid, places, anchors,
     return np.array(power), np.array(walls)
 
 
-def validate_kolakowski(params: BleParams | None = None) -> KolakowskiResult:
+class Split(enum.Enum):
+    """Which places fit the offsets (the rest are predicted)."""
+
+    CHECKERBOARD = "checkerboard"  # the "black" 2 m squares (the goals' split)
+    WEST = "west"  # x < 4 m: the flat's west rooms fit, the east ones are predicted (docs/radio.md)
+    EAST = "east"  # x >= 4 m: the other way round
+
+
+def validate_kolakowski(params: BleParams | None = None, split: Split = Split.CHECKERBOARD) -> KolakowskiResult:
     """Fit per-anchor offsets on half the flat (2 m checkerboard), predict the other half."""
     params = params or BleParams()
     places, rssi, anchors, layout = _read_kolakowski()
     grid = kolakowski_grid(layout)
-    result = _kolakowski_figures(params, grid, places, rssi, anchors, two_d=False)
-    previous = _kolakowski_figures(replace(params, **PREVIOUS_MODEL), grid, places, rssi, anchors, two_d=True)
+    result = _kolakowski_figures(params, grid, places, rssi, anchors, two_d=False, split=split)
+    previous = _kolakowski_figures(replace(params, **PREVIOUS_MODEL), grid, places, rssi, anchors, two_d=True,
+                                   split=split)
     result.previous_rows = previous.rows
     goals = []
     for row in result.rows:
@@ -274,7 +283,7 @@ def validate_kolakowski(params: BleParams | None = None) -> KolakowskiResult:
     return result
 
 
-def _kolakowski_figures(params, grid, places, rssi, anchors, *, two_d: bool) -> KolakowskiResult:
+def _kolakowski_figures(params, grid, places, rssi, anchors, *, two_d: bool, split: Split) -> KolakowskiResult:
     power, walls = _predict_kolakowski(params, grid, places, anchors, two_d=two_d)
     a_idx, p_idx = [], []
     measured = []
@@ -289,7 +298,8 @@ def _kolakowski_figures(params, grid, places, rssi, anchors, *, two_d: bool) -> 
     wall_count = walls[a_idx, p_idx]
     xy = places[p_idx]
     square = np.floor(xy / SPLIT_SQUARE_M).astype(np.int64)
-    fitted = (square[:, 0] + square[:, 1]) % 2 == 0
+    fitted = {Split.CHECKERBOARD: (square[:, 0] + square[:, 1]) % 2 == 0, Split.WEST: xy[:, 0] < 4.0,
+              Split.EAST: xy[:, 0] >= 4.0}[split]
     offsets = np.array([np.mean(measured[fitted & (a_idx == k)] - predicted[fitted & (a_idx == k)])
                         for k in range(len(anchors))])
     residual = measured - (predicted + offsets[a_idx])
