@@ -64,7 +64,7 @@ _TABLE_TOP_DB = 60.0
 
 @dataclass(frozen=True)
 class BleParams:
-    """Every parameter of BleChannel. Sources and the calibration in docs/radio.md.
+    """Every parameter of BleChannel. Sources and the validation in docs/radio.md.
 
     - `tx_power_dbm`: 0 dBm, the usual default of BLE modules (anchors; Class 2 allows 4 dBm).
     - `tx_antenna_gain_dbi`, `rx_antenna_gain_dbi`: -2 dBi each, a small chip/PCB antenna on a
