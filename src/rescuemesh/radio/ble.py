@@ -8,7 +8,7 @@ Theory of operation (every figure's source is on BleParams and in docs/radio.md)
 
     P_mean(tx, rx) = P_tx + G_tx + G_rx - PL(d) - sum_walls L(material) - S(tx, rx)      [dBm]
     d              = 3D distance between the antennas (heights h_t, h_r above the floor)
-    PL(d)          = PL(1 m) + 10 n log10(d)                          d <= d_bp   (free space, n = 2)
+    PL(d)          = PL(1 m) + 10 n log10(d)                          d <= d_bp   (line of sight, n 1.6)
                    = PL(1 m) + 10 n log10(d_bp) + 10 n_far log10(d / d_bp)   beyond (two-ray, n_far = 4)
     d_bp           = 4 h_t h_r / lambda                                (the two-ray breakpoint)
     walls          = the walls the straight segment tx -> rx crosses on the map grid, each priced by
