@@ -88,7 +88,7 @@ def _folder(text: str) -> Path:
 _EXTRA_MODULES = {"sim": ("mujoco", "numba", "matplotlib", "mcap", "foxglove", "pyarrow"), "ble": ("bumble",)}
 #: Commands and the extra they need; a robot process (`rescuemesh robot`) needs none.
 _COMMAND_EXTRA = {"run": "sim", "world": "sim", "bench": "sim", "radio-map": "sim", "ble-check": "ble", "sweep": "sim",
-                  "report": "sim", "check": "sim"}
+                  "report": "sim", "check": "sim", "radio-validate": "sim"}
 
 
 def _require_extra(command: str) -> None:
@@ -193,6 +193,10 @@ def build_parser() -> argparse.ArgumentParser:
     radio_map.add_argument("--radio", choices=["ble", "disc"], default="ble", help="channel model (default ble)")
     radio_map.add_argument("--seed", type=int, default=0, help="seed of the shadowing field (default 0)")
     radio_map.add_argument("--power", action="store_true", help="plot mean received power instead of delivery")
+    validate = sub.add_parser("radio-validate", help="check the BLE model against measured BLE data (docs/radio.md)")
+    validate.add_argument("--data", choices=["kolakowski", "danis", "all"], default="all",
+                          help="data set (default all)")
+    validate.add_argument("--out", type=Path, default=Path("out/radio-validate"), help="output folder")
     ble = sub.add_parser("ble-check", help="run three endpoints over a real BLE host stack (bumble) in real time")
     ble.add_argument("--hci", action="append", default=[], metavar="SPEC",
                      help="an HCI transport per robot (e.g. usb:0); give it three times, or none for "
@@ -245,6 +249,8 @@ def _main(argv: list[str] | None) -> int:
             return _list_scenarios()
         if args.command == "radio-map":
             return _radio_map(args)
+        if args.command == "radio-validate":
+            return _radio_validate(args)
         if args.command == "keys":
             return _keys_new(args.file)
         if args.command == "ble-check":
@@ -525,6 +531,34 @@ def _radio_map(args) -> int:
     print(f"radio map of a transmitter at ({x:g}, {y:g}) on {map_model.name} ({args.radio} model)")
     print(f"  wrote {path}")
     return EXIT_OK
+
+
+def _radio_validate(args) -> int:
+    """Print the model's errors against the packaged BLE data sets and draw radio_validation.png;
+    exit 1 when a goal is not met (radio/validation.py)."""
+    from rescuemesh.radio import BleParams
+    from rescuemesh.radio import validation as v
+    from rescuemesh.report.radio_validation import write_validation_plot
+
+    out = _writable_folder(args.out)
+    params = BleParams()
+    try:
+        kolakowski = v.validate_kolakowski(params) if args.data in ("kolakowski", "all") else None
+        danis = v.validate_danis(params) if args.data in ("danis", "all") else None
+    except v.ValidationDataError as error:
+        raise UsageError(str(error)) from None
+    goals = []
+    for result, text in ((kolakowski, v.format_kolakowski), (danis, v.format_danis)):
+        if result is not None:
+            print(text(result))
+            goals += result.goals
+    path = write_validation_plot(out / "radio_validation.png", kolakowski, danis,
+                                 decorrelation_m=params.shadowing_decorrelation_m, exponent=params.path_loss_exponent)
+    met = sum(g.met for g in goals)
+    print(f"goals met: {met} of {len(goals)}" + ("" if met == len(goals) else
+          "; not met: " + "; ".join(g.what for g in goals if not g.met)))
+    print(f"  wrote {path}")
+    return EXIT_OK if met == len(goals) else 1
 
 
 def _summary(outcome) -> None:

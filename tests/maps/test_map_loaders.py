@@ -212,3 +212,28 @@ def test_bad_grid_resolution_is_a_map_error(resolution: float) -> None:
 
     with pytest.raises(MapError, match="grid resolution"):
         load_map(office_map_path(), grid_resolution=resolution)
+
+
+def test_wall_materials_are_read_and_rasterised(tmp_path: Path) -> None:
+    from rescuemesh.maps import WallMaterial
+
+    path = tmp_path / "walls.yaml"
+    path.write_text("walls:\n  - [0, 0, 4, 0.2, concrete]\n  - [0, 1.8, 4, 2, light]\n  - [1.9, 0.2, 2.1, 1.8]\n")
+    m = load_map(path, grid_resolution=0.1)
+    assert m.wall_materials == (WallMaterial.CONCRETE, WallMaterial.LIGHT, None)
+    assert m.grid.materials is not None
+    assert m.grid.materials[0, 5] == WallMaterial.CONCRETE.code
+    assert m.grid.materials[19, 5] == WallMaterial.LIGHT.code
+    assert m.grid.materials[10, 20] == 0 and m.grid.occupied[10, 20]  # untagged wall
+    assert m.grid.materials[10, 5] == 0 and not m.grid.occupied[10, 5]  # free space
+    # a map with no tags keeps no material raster
+    plain = tmp_path / "plain.yaml"
+    plain.write_text("walls:\n  - [0, 0, 4, 0.2]\n  - [0, 1.8, 4, 2]\n")
+    assert load_map(plain, grid_resolution=0.1).grid.materials is None
+
+
+def test_an_unknown_wall_material_is_one_clear_error(tmp_path: Path) -> None:
+    path = tmp_path / "walls.yaml"
+    path.write_text("walls:\n  - [0, 0, 4, 0.2, marble]\n  - [0, 1.8, 4, 2]\n")
+    with pytest.raises(MapError, match=r"walls\[0\] has an unknown wall material 'marble'; known: light, brick"):
+        load_map(path)

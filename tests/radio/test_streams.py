@@ -27,7 +27,7 @@ def test_uniforms_are_the_same_from_a_generator_or_a_stream():
 
 def test_ble_reception_is_the_same_through_a_stream():
     ch = BleChannel(None)
-    tx, rx = (0.025, 0.025), (16.025, 0.025)  # near sensitivity: both fates occur
+    tx, rx = (0.025, 0.025), (46.025, 0.025)  # near sensitivity: both fates occur (16 m before issue 20)
     stream = UniformStream(np.random.default_rng(11), block=64)
     generator = np.random.default_rng(11)
     fates = [ch.reception(tx, rx, 20, stream) for _ in range(500)]

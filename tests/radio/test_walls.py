@@ -95,3 +95,54 @@ def test_cell_count_equals_the_count_between_the_cell_centres():
         counts.append(count_walls_cells(office, r0, c0, r1, c1))
         assert counts[-1] == count_walls(office, centre(r0, c0), centre(r1, c1))
     assert max(counts) >= 3 and min(counts) == 0
+
+
+def test_each_wall_is_priced_by_the_material_where_the_path_enters_it():
+    from rescuemesh.radio.walls import wall_loss_cells, wall_loss_many
+
+    occ = np.zeros((10, 60), dtype=bool)
+    codes = np.zeros((10, 60), dtype=np.uint8)
+    occ[:, 10:12], codes[:, 10:12] = True, 3  # concrete
+    occ[:, 30:32], codes[:, 30:32] = True, 1  # light
+    occ[:, 45:47] = True  # untagged: code 0
+    grid = OccupancyGrid(occ, 0.1, 0.0, 0.0, materials=codes)
+    table = np.array([3.4, 2.2, 3.4, 14.8, 1.9, 0.6])
+    assert wall_loss_cells(grid, 5, 0, 5, 59, table) == (3, pytest.approx(14.8 + 2.2 + 3.4))
+    assert wall_loss_cells(grid, 5, 59, 5, 20, table) == (2, pytest.approx(3.4 + 2.2))
+    walls, loss = wall_loss_many(grid, (0.05, 0.55), np.array([[5.95, 0.55], [2.05, 0.55], [0.55, 0.95]]), table)
+    assert walls.tolist() == [3, 1, 0]
+    np.testing.assert_allclose(loss, [14.8 + 2.2 + 3.4, 14.8, 0.0])
+    # without materials every wall costs the untagged price
+    plain = OccupancyGrid(occ, 0.1, 0.0, 0.0)
+    assert wall_loss_cells(plain, 5, 0, 5, 59, table) == (3, pytest.approx(3 * 3.4))
+    np.testing.assert_allclose(wall_loss_many(plain, (0.05, 0.55), np.array([[5.95, 0.55]]), table)[1], [3 * 3.4])
+
+
+def test_vectorised_loss_equals_scalar_on_the_office():
+    from rescuemesh.radio import BleParams
+    from rescuemesh.radio.walls import wall_loss_cells, wall_loss_many
+
+    office = load_map(office_map_path())
+    table = BleParams().loss_by_code
+    rng = np.random.default_rng(5)
+    a = (3.0, 8.0)
+    pts = rng.uniform((0.2, 0.2), (19.3, 9.0), size=(300, 2))
+    walls, loss = wall_loss_many(office.grid, a, pts, table)
+    r0, c0 = office.grid.world_to_cell(*a)
+    for p, w, l in zip(pts, walls, loss):
+        assert wall_loss_cells(office.grid, r0, c0, *office.grid.world_to_cell(*p), table) == (w, pytest.approx(l))
+
+
+def test_a_wall_is_priced_by_its_dearest_cell_where_materials_meet():
+    # this used to price a wall by the cell the path entered it through: a path entering a
+    # light partition where it meets a concrete wall paid the partition's 2.2 dB (stripes on the map)
+    from rescuemesh.radio.walls import wall_loss_cells, wall_loss_many
+
+    occ = np.zeros((10, 40), dtype=bool)
+    codes = np.zeros((10, 40), dtype=np.uint8)
+    occ[5, 10:14], codes[5, 10:14] = True, 1  # light partition, met end-on
+    occ[:, 14:16], codes[:, 14:16] = True, 3  # concrete wall across the path
+    grid = OccupancyGrid(occ, 0.1, 0.0, 0.0, materials=codes)
+    table = np.array([0.0, 2.2, 3.4, 14.8, 1.9, 0.6])
+    assert wall_loss_cells(grid, 5, 2, 5, 30, table) == (1, pytest.approx(14.8))
+    np.testing.assert_allclose(wall_loss_many(grid, (0.25, 0.55), np.array([[3.05, 0.55]]), table)[1], [14.8])

@@ -6,6 +6,6 @@ SLAM-like map, slam_like.py): no MuJoCo, no navigation.
 
 from rescuemesh.maps.grid import OccupancyGrid
 from rescuemesh.maps.loaders import load_map
-from rescuemesh.maps.model import MapError, MapModel, Rect, office_map_path
+from rescuemesh.maps.model import MapError, MapModel, Rect, WallMaterial, office_map_path
 
-__all__ = ["MapError", "MapModel", "OccupancyGrid", "Rect", "load_map", "office_map_path"]
+__all__ = ["MapError", "MapModel", "OccupancyGrid", "Rect", "WallMaterial", "load_map", "office_map_path"]

@@ -17,13 +17,15 @@ class OccupancyGrid:
 
     Row 0 is the lowest y (as nav_msgs/OccupancyGrid; PGM images are flipped on load). Cell (0, 0)
     has its lower-left corner at (`origin_x`, `origin_y`) m in the map frame; cells are
-    `resolution` m square.
+    `resolution` m square. `materials` (optional, same shape, uint8) holds the code of the wall
+    material of each occupied cell (`maps.model.WallMaterial.code`; 0: untagged); None: all untagged.
     """
 
     occupied: np.ndarray
     resolution: float
     origin_x: float
     origin_y: float
+    materials: np.ndarray | None = None
 
     @property
     def shape(self) -> tuple[int, int]:

@@ -3,7 +3,9 @@
 Owns: file reading, validation (every user mistake becomes a one-line MapError naming the file)
 and the pixel semantics of map_server images. Must not know physics, navigation or scenarios.
 
-Wall maps (`walls:`) are rasterised at `grid_resolution` for the grid. ROS maps (`image:`) keep
+Wall maps (`walls:`) are rasterised at `grid_resolution` for the grid; a wall may carry its material
+as a fifth item (`[x0, y0, x1, y1, concrete]`, maps.model.WallMaterial), which the grid keeps as a
+per-cell code for the radio. ROS maps have no materials (the radio prices their walls by default). ROS maps (`image:`) keep
 the image's own resolution for the grid (`grid_resolution` is ignored) and become walls by merging
 occupied cells into boxes. Pixel semantics follow map_server:
 
@@ -36,7 +38,7 @@ import yaml
 
 from rescuemesh.geometry import Pose2D
 from rescuemesh.maps.grid import OccupancyGrid
-from rescuemesh.maps.model import MapError, MapModel, Rect
+from rescuemesh.maps.model import MapError, MapModel, Rect, WallMaterial
 from rescuemesh.maps.raster import cells_to_rects, rasterise_walls
 
 DEFAULT_WALL_HEIGHT = 0.5  # m
@@ -280,7 +282,9 @@ def _load_wall_map(path: Path, doc: dict[str, Any], resolution: float, fail: _Fa
     raw_walls = _sequence(doc, "walls", fail)
     if not raw_walls:
         fail("'walls' is empty; a wall map needs at least one wall")
-    walls = tuple(_rect(v, f"walls[{i}]", fail) for i, v in enumerate(raw_walls))
+    tagged = [_tagged_rect(v, f"walls[{i}]", fail) for i, v in enumerate(raw_walls)]
+    walls = tuple(rect for rect, _ in tagged)
+    materials = tuple(material for _, material in tagged)
     bounds = Rect(
         min(w.x_min for w in walls),
         min(w.y_min for w in walls),
@@ -289,7 +293,7 @@ def _load_wall_map(path: Path, doc: dict[str, Any], resolution: float, fail: _Fa
     )
     _check_span(bounds, fail)
     _check_size(bounds.x_max - bounds.x_min, bounds.y_max - bounds.y_min, resolution, fail)
-    grid = rasterise_walls(walls, bounds, resolution)
+    grid = rasterise_walls(walls, bounds, resolution, materials)
     extras = _extras(doc, fail)
     _check_poses_free(grid, extras, fail)
     return MapModel(
@@ -299,8 +303,20 @@ def _load_wall_map(path: Path, doc: dict[str, Any], resolution: float, fail: _Fa
         walls=walls,
         grid=grid,
         wall_height=_wall_height(doc, fail),
+        wall_materials=materials,
         **extras,
     )
+
+
+def _tagged_rect(value: Any, what: str, fail: _Failer) -> tuple[Rect, WallMaterial | None]:
+    """A wall: [x_min, y_min, x_max, y_max] or the same with a material name as a fifth item."""
+    if isinstance(value, (list, tuple)) and len(value) == 5:
+        tag = value[4]
+        known = ", ".join(m.value for m in WallMaterial)
+        if not isinstance(tag, str) or tag not in {m.value for m in WallMaterial}:
+            fail(f"{what} has an unknown wall material {_show(tag)}; known: {known}")
+        return _rect(list(value[:4]), what, fail), WallMaterial(tag)
+    return _rect(value, what, fail), None
 
 
 # ---------------------------------------------------------------- ROS map_server map

@@ -7,12 +7,34 @@ Must not know: physics, navigation, scenarios, file formats.
 
 from __future__ import annotations
 
+import enum
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
 from rescuemesh.geometry import Pose2D
 from rescuemesh.maps.grid import OccupancyGrid
+
+
+class WallMaterial(enum.Enum):
+    """What a wall is made of, as a map file may tag it (the radio prices each; docs/radio.md).
+
+    The code of a material in `OccupancyGrid.materials` is its position here plus 1; 0 is a wall with
+    no tag (ROS maps, untagged boxes), which the radio prices with its default.
+    """
+
+    LIGHT = "light"  # plasterboard on studs
+    BRICK = "brick"
+    CONCRETE = "concrete"
+    GLASS = "glass"
+    WOOD = "wood"  # furniture, doors
+
+    @property
+    def code(self) -> int:
+        return _MATERIAL_CODES[self]
+
+
+_MATERIAL_CODES = {m: i + 1 for i, m in enumerate(WallMaterial)}
 
 
 class MapError(ValueError):
@@ -41,6 +63,7 @@ class MapModel:
     """A map as physics, navigation, scenarios and plots see it.
 
     - `walls`: boxes that become static geoms in the physics world (height `wall_height` m).
+    - `wall_materials`: the material each wall is tagged with (None: untagged), same order as `walls`.
     - `grid`: the occupancy grid navigation plans on (rasterised walls, or the map_server image).
     - `bounds`: the rectangle the map covers.
     - `regions`: named areas ("hall", "room_east", ...) for success criteria and plot labels.
@@ -60,6 +83,7 @@ class MapModel:
     starts: dict[str, Pose2D] = field(default_factory=dict)
     goals: dict[str, Pose2D] = field(default_factory=dict)
     bases: dict[str, Pose2D] = field(default_factory=dict)
+    wall_materials: tuple[WallMaterial | None, ...] = ()
 
     def region_of(self, x: float, y: float) -> str | None:
         """Name of the first region that contains (x, y), or None."""

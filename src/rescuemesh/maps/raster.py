@@ -12,30 +12,39 @@ from collections.abc import Iterable
 import numpy as np
 
 from rescuemesh.maps.grid import OccupancyGrid
-from rescuemesh.maps.model import Rect
+from rescuemesh.maps.model import Rect, WallMaterial
 
 # Tolerance in cells when snapping box edges to cell edges: a 0.1 m wall at 0.05 m resolution
 # covers exactly 2 cells, not 3 because of floating-point round-off.
 _SNAP = 1e-6
 
 
-def rasterise_walls(walls: Iterable[Rect], bounds: Rect, resolution: float) -> OccupancyGrid:
+def rasterise_walls(walls: Iterable[Rect], bounds: Rect, resolution: float,
+                    materials: Iterable[WallMaterial | None] | None = None) -> OccupancyGrid:
     """An occupancy grid over `bounds` at `resolution` m per cell, with every cell a wall overlaps occupied.
 
     Cell (0, 0) has its lower-left corner at (bounds.x_min, bounds.y_min); a cell is occupied when a
-    wall covers any part of it with positive area (conservative for planning).
+    wall covers any part of it with positive area (conservative for planning). `materials` (one per
+    wall, None: untagged) fills the grid's material codes; where walls overlap the later one wins.
     """
+    walls = list(walls)
+    tags = list(materials) if materials is not None else []
     cols = max(1, math.ceil((bounds.x_max - bounds.x_min) / resolution - _SNAP))
     rows = max(1, math.ceil((bounds.y_max - bounds.y_min) / resolution - _SNAP))
     occupied = np.zeros((rows, cols), dtype=bool)
-    for wall in walls:
+    codes = np.zeros((rows, cols), dtype=np.uint8) if any(t is not None for t in tags) else None
+    for k, wall in enumerate(walls):
         c0 = max(0, math.floor((wall.x_min - bounds.x_min) / resolution + _SNAP))
         c1 = min(cols, math.ceil((wall.x_max - bounds.x_min) / resolution - _SNAP))
         r0 = max(0, math.floor((wall.y_min - bounds.y_min) / resolution + _SNAP))
         r1 = min(rows, math.ceil((wall.y_max - bounds.y_min) / resolution - _SNAP))
         if c1 > c0 and r1 > r0:
             occupied[r0:r1, c0:c1] = True
-    return OccupancyGrid(occupied=occupied, resolution=resolution, origin_x=bounds.x_min, origin_y=bounds.y_min)
+            if codes is not None:
+                tag = tags[k] if k < len(tags) else None
+                codes[r0:r1, c0:c1] = tag.code if tag is not None else 0
+    return OccupancyGrid(occupied=occupied, resolution=resolution, origin_x=bounds.x_min, origin_y=bounds.y_min,
+                         materials=codes)
 
 
 def merge_cells(occupied: np.ndarray) -> list[tuple[int, int, int, int]]:

@@ -1,7 +1,8 @@
 """Radio channel models: the physics of one frame from one place to another (simulation only).
 
 Owns: ChannelModel and its registry, DiscChannel ("disc") and BleChannel ("ble", the default),
-UniformStream (a Generator's uniforms a block at a time, for the per-frame draws).
+UniformStream (a Generator's uniforms a block at a time, for the per-frame draws); wall losses by
+material (materials.py) and the model's validation against measured BLE data (validation.py).
 Must not know: frame contents, queues, collisions, endpoints, robots (transport/'s medium does).
 """
 

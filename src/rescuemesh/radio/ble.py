@@ -6,12 +6,18 @@ queues, collisions, the extra loss (the medium's), frame contents, the clock.
 
 Theory of operation (every figure's source is on BleParams and in docs/radio.md):
 
-    P_mean(tx, rx) = P_tx + G_tx + G_rx - PL(d) - n_walls * L_wall - S(tx, rx)        [dBm]
-    PL(d)          = 20 log10(f_MHz) - 28 + 10 n log10(max(d, d_min))     (ITU-R P.1238, no floors)
-    n_walls        = walls the straight segment tx -> rx crosses on the map grid  (radio/walls.py)
+    P_mean(tx, rx) = P_tx + G_tx + G_rx - PL(d) - sum_walls L(material) - S(tx, rx)      [dBm]
+    d              = 3D distance between the antennas (heights h_t, h_r above the floor)
+    PL(d)          = PL(1 m) + 10 n log10(d)                          d <= d_bp   (line of sight, n 1.6)
+                   = PL(1 m) + 10 n log10(d_bp) + 10 n_far log10(d / d_bp)   beyond (two-ray, n_far = 4)
+    d_bp           = 4 h_t h_r / lambda                                (the two-ray breakpoint)
+    walls          = the walls the straight segment tx -> rx crosses on the map grid, each priced by
+                     its material (radio/walls.py, radio/materials.py: ITU-R P.2040 slabs)
     S              = seeded, spatially correlated log-normal shadowing            (radio/shadowing.py)
     per frame:  rssi = P_mean + 10 log10(g),  g ~ Rician(K), mean 1               (radio/fading.py)
                 lost with probability PER(rssi - P_sens, frame bytes)            (radio/per.py)
+
+Validated against two public BLE data sets (radio/validation.py, `rescuemesh radio-validate`).
 
 A receiver whose mean power is more than `out_of_range_margin_db` below the sensitivity is out of
 range: nothing is drawn, it cannot receive, and it is not `audible` (the medium skips it, so it
@@ -36,12 +42,14 @@ from typing import Any, ClassVar
 import numpy as np
 
 from rescuemesh.maps.grid import OccupancyGrid
+from rescuemesh.maps.model import WallMaterial
 from rescuemesh.radio.channel import ChannelModel, LossCause, Point, Reception, ble_adv_airtime_s, register_channel
 from rescuemesh.radio.fading import gain_db_distribution, rician_gain_from_uniforms
 from rescuemesh.radio.per import crc_covered_bits, packet_error_rate, packet_error_rate_scalar
 from rescuemesh.radio.shadowing import ShadowField
 from rescuemesh.radio.streams import UniformStream, uniforms
-from rescuemesh.radio.walls import count_walls_cells, count_walls_many
+from rescuemesh.radio.materials import C_M_S
+from rescuemesh.radio.walls import wall_loss_cells, wall_loss_many
 
 #: Position quantum in m when the channel has no map grid.
 DEFAULT_QUANTUM_M = 0.05
@@ -56,28 +64,37 @@ _TABLE_TOP_DB = 60.0
 
 @dataclass(frozen=True)
 class BleParams:
-    """Every parameter of BleChannel. Sources and the calibration in docs/radio.md.
+    """Every parameter of BleChannel. Sources and the validation in docs/radio.md.
 
     - `tx_power_dbm`: 0 dBm, the usual default of BLE modules (anchors; Class 2 allows 4 dBm).
     - `tx_antenna_gain_dbi`, `rx_antenna_gain_dbi`: -2 dBi each, a small chip/PCB antenna on a
       robot (stated assumption: such antennas have about -3..+1 dBi peak, less on average over
       directions and with a robot body next to them).
     - `sensitivity_dbm`: -93 dBm at 0.1 % BER (Core Vol 6 Part A 4.1 asks -70 dBm or better;
-      modules are -90..-97 dBm, anchors). Where in that range: set by the calibration.
+      modules are -90..-97 dBm, anchors). Unchanged by the validation (it fits levels per anchor).
     - `frequency_mhz`: 2440 MHz, the middle of the 2.4 GHz band (advertising channels 37, 38,
       39 are at 2402, 2426, 2480 MHz); sets PL(1 m) = 20 log10(f_MHz) - 28 = 39.75 dB (P.1238).
-    - `path_loss_exponent`: 4.0, the plane-earth (two-ray) law beyond the breakpoint
-      4 h_t h_r / lambda ~ 1.3 m for antennas ~0.2 m above the floor (Rappaport, Wireless
-      Communications, 2nd ed., 4.6). ITU-R P.1238 Table 2 gives N = 30 (n = 3.0) for offices
-      with antennas at desk height; with n = 3 the calibration goals cannot all hold.
+    - `tx_antenna_height_m`, `rx_antenna_height_m`: 0.40 m, a module on a TurtleBot 2's top plate
+      (sim/mjcf.py PLATE_TOP, turtlebot_description). They set the 3D distance and the breakpoint.
+    - `path_loss_exponent`: 1.6, the line-of-sight slope up to the two-ray breakpoint d_bp = 4 h_t
+      h_r / lambda (5.2 m for antennas 0.4 m up): Rappaport, Wireless Communications 2nd ed., Table
+      4.2, "in building, line-of-sight: 1.6 to 1.8" (below free space's 2: corridors and rooms guide
+      the wave); the Danis office's own fit is 1.55 (95 % 1.45..1.64), where 2.0 lies outside
+      (`rescuemesh radio-validate`). The breakpoint is Rappaport 4.6 / Goldsmith 2.4.
+    - `far_path_loss_exponent`: 4.0, the plane-earth law beyond the breakpoint (same sources).
     - `min_distance_m`: 1 m, the distance P.1238's reference loss is given at; closer is 1 m.
-    - `wall_loss_db`: 4.6 dB per wall crossed, COST 231 multi-wall model (Final Report 4.7:
-      light 3.4 dB, heavy 6.9 dB; anchors: heavy/concrete 7-15 dB); where in that range: set by
-      the calibration (the office's 10 cm interior partitions).
-    - `shadowing_sigma_db`: 4 dB, WINNER II D1.1.2 Tables 4-4/4-5, indoor office A1 NLOS (a
-      model that, like this one, counts walls explicitly). 0 disables shadowing.
-    - `shadowing_decorrelation_m`: 4 m, WINNER II D1.1.2 Table 4-5, A1 NLOS shadow-fading
-      correlation distance (Gudmundson's exponential model); the lattice spacing of the field.
+    - `wall_loss_db`: 3.4 dB, a wall the map does not tag (ROS maps): an interior brick wall.
+    - `wall_loss_light_db` 2.2, `wall_loss_brick_db` 3.4, `wall_loss_concrete_db` 14.8,
+      `wall_loss_glass_db` 1.9, `wall_loss_wood_db` 0.6: one wall of each material as built in
+      radio/materials.py (two 12.5 mm plasterboards; 0.12 m brick; 0.20 m concrete; 6 mm glass;
+      40 mm wood), its transmission loss at 2.44 GHz and normal incidence from ITU-R P.2040-3
+      Table 3 (rounded to 0.1 dB; tests check they match the computation).
+    - `shadowing_sigma_db`: 4 dB, WINNER II D1.1.2 Tables 4-4/4-5, indoor office A1 NLOS (a model
+      that, like this one, counts walls explicitly); the Danis office's spread of place means about
+      its own fit is 3.98 dB (95 % 3.85..4.08). 0 disables shadowing.
+    - `shadowing_decorrelation_m`: 0.9 m, the lattice spacing of the field, whose correlation falls
+      to 1/e at 0.9 spacings (0.8 m): fitted to the Kolakowski flat's residuals, exp(-d / 0.79 m)
+      (`rescuemesh radio-validate`); it was WINNER II A1 NLOS's 4 m, four times what the flat shows.
     - `rician_k`: 5.0 (7.0 dB) linear K-factor of the per-frame fading, the mean of WINNER II
       A1 LOS (7 dB, spread 6 dB); 0 is Rayleigh.
     - `out_of_range_margin_db`: 20 dB. A receiver whose mean power is more than this below the
@@ -92,11 +109,19 @@ class BleParams:
     rx_antenna_gain_dbi: float = -2.0
     sensitivity_dbm: float = -93.0
     frequency_mhz: float = 2440.0
-    path_loss_exponent: float = 4.0
+    tx_antenna_height_m: float = 0.40
+    rx_antenna_height_m: float = 0.40
+    path_loss_exponent: float = 1.6
+    far_path_loss_exponent: float = 4.0
     min_distance_m: float = 1.0
-    wall_loss_db: float = 4.6
+    wall_loss_db: float = 3.4
+    wall_loss_light_db: float = 2.2
+    wall_loss_brick_db: float = 3.4
+    wall_loss_concrete_db: float = 14.8
+    wall_loss_glass_db: float = 1.9
+    wall_loss_wood_db: float = 0.6
     shadowing_sigma_db: float = 4.0
-    shadowing_decorrelation_m: float = 4.0
+    shadowing_decorrelation_m: float = 0.9
     rician_k: float = 5.0
     out_of_range_margin_db: float = 20.0
 
@@ -110,11 +135,13 @@ class BleParams:
             if not math.isfinite(number):
                 raise ValueError(f"{f.name} must be finite, got {value!r}")
             object.__setattr__(self, f.name, number)
-        positive = ("frequency_mhz", "path_loss_exponent", "min_distance_m", "shadowing_decorrelation_m")
+        positive = ("frequency_mhz", "tx_antenna_height_m", "rx_antenna_height_m", "path_loss_exponent",
+                    "far_path_loss_exponent", "min_distance_m", "shadowing_decorrelation_m")
         for name in positive:
             if not getattr(self, name) > 0.0:
                 raise ValueError(f"{name} must be > 0, got {getattr(self, name)}")
-        for name in ("wall_loss_db", "shadowing_sigma_db", "rician_k", "out_of_range_margin_db"):
+        for name in ("wall_loss_db", *_MATERIAL_PARAMS.values(), "shadowing_sigma_db", "rician_k",
+                     "out_of_range_margin_db"):
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
 
@@ -124,8 +151,37 @@ class BleParams:
         return 20.0 * math.log10(self.frequency_mhz) - 28.0
 
     @property
+    def breakpoint_m(self) -> float:
+        """The two-ray breakpoint 4 h_t h_r / lambda in m (5.2 m for antennas 0.4 m up at 2440 MHz)."""
+        return 4.0 * self.tx_antenna_height_m * self.rx_antenna_height_m * self.frequency_mhz * 1e6 / C_M_S
+
+    @property
+    def loss_by_code(self) -> np.ndarray:
+        """Loss in dB of one wall by material code (0: untagged, then maps.model.WallMaterial's order)."""
+        return np.array([self.wall_loss_db, *(getattr(self, _MATERIAL_PARAMS[m]) for m in WallMaterial)])
+
+    def path_loss_db(self, d_m):
+        """PL(d) in dB for the 3D distance `d_m` (float or array): dual slope around the breakpoint."""
+        d_min = self.min_distance_m
+        bp = max(self.breakpoint_m, d_min)
+        d = np.maximum(d_m, d_min)
+        near = 10.0 * self.path_loss_exponent * np.log10(np.minimum(d, bp))
+        far = 10.0 * self.far_path_loss_exponent * np.log10(np.maximum(d, bp) / bp)
+        out = self.reference_loss_db + near + far
+        return float(out) if np.ndim(out) == 0 else out
+
+    def distance_3d(self, d2_m):
+        """The distance between the antennas for a horizontal distance `d2_m` (float or array)."""
+        dh = self.tx_antenna_height_m - self.rx_antenna_height_m
+        return np.hypot(d2_m, dh) if np.ndim(d2_m) else math.hypot(d2_m, dh)
+
+    @property
     def rician_k_db(self) -> float:
         return 10.0 * math.log10(self.rician_k) if self.rician_k > 0 else -math.inf
+
+
+#: The BleParams field that prices one wall of each material.
+_MATERIAL_PARAMS = {m: f"wall_loss_{m.value}_db" for m in WallMaterial}
 
 
 @dataclass(frozen=True, slots=True)
@@ -135,7 +191,7 @@ class LinkBudget:
     distance_m: float
     path_loss_db: float
     walls: int
-    wall_loss_db: float
+    wall_loss_db: float  # the crossed walls' loss, summed
     shadow_db: float
     mean_rx_power_dbm: float
     margin_db: float  # mean power minus sensitivity
@@ -143,7 +199,7 @@ class LinkBudget:
 
 @register_channel
 class BleChannel(ChannelModel):
-    """BLE 1M advertising on an office map: P.1238 path loss, COST 231 walls, shadowing, Rician fading.
+    """BLE 1M advertising on an office map: dual-slope path loss, walls by material, shadowing, fading.
 
     `BleChannel(grid, seed=0, params=BleParams(...))`; `grid` is the map's OccupancyGrid (None: no
     walls), `seed` fixes the shadowing field. Build by name with `make_channel("ble", grid=...,
@@ -166,6 +222,11 @@ class BleChannel(ChannelModel):
         self._sens = p.sensitivity_dbm
         self._floor = p.sensitivity_dbm - p.out_of_range_margin_db  # audible iff mean power >= this
         self._k = p.rician_k
+        self._dh = p.tx_antenna_height_m - p.rx_antenna_height_m
+        self._bp = max(p.breakpoint_m, p.min_distance_m)
+        self._near10 = 10.0 * p.path_loss_exponent
+        self._far10 = 10.0 * p.far_path_loss_exponent
+        self._loss_by_code = p.loss_by_code
         self._mean_power_cells = lru_cache(maxsize=cache_pairs)(self._compute_mean_power_cells)
         self._cache_pairs = cache_pairs
         self._unit_of_cell: dict[tuple[int, int], float] = {}
@@ -201,28 +262,32 @@ class BleChannel(ChannelModel):
 
     def _budget_cells(self, ai: int, aj: int, bi: int, bj: int) -> LinkBudget:
         """The link budget between the centres of cells (ai, aj) <= (bi, bj)."""
-        d, path_loss, walls, shadow, power = self._budget_terms(ai, aj, bi, bj)
-        p = self.params
-        return LinkBudget(d, path_loss, walls, walls * p.wall_loss_db, shadow, power, power - self._sens)
+        d, path_loss, walls, shadow, power, wall_loss = self._budget_terms(ai, aj, bi, bj)
+        return LinkBudget(d, path_loss, walls, wall_loss, shadow, power, power - self._sens)
 
-    def _budget_terms(self, ai: int, aj: int, bi: int, bj: int) -> tuple[float, float, int, float, float]:
+    def _budget_terms(self, ai: int, aj: int, bi: int, bj: int) -> tuple[float, float, int, float, float, float]:
         """(distance, path loss, walls, shadow, mean power) between the centres of cells (ai, aj) <=
         (bi, bj), with the shadow field read from a per-cell cache: a team's cells recur far more
         often than their pairs, which change whenever either robot moves 5 cm (a convoy of 30 meets
-        some 360,000 new pairs: a tuple, not a frozen LinkBudget, for the cache's misses)."""
+        some 360,000 new pairs: a tuple, not a frozen LinkBudget, for the cache's misses). The wall
+        loss comes last so that [4] stays the mean power. `d` is the 3D distance of the antennas."""
         pa, pb = self._centre(ai, aj), self._centre(bi, bj)
         p = self.params
-        d = math.hypot(pb[0] - pa[0], pb[1] - pa[1])
-        path_loss = p.reference_loss_db + 10.0 * p.path_loss_exponent * math.log10(max(d, p.min_distance_m))
+        d = math.hypot(pb[0] - pa[0], pb[1] - pa[1], self._dh)
+        dd = max(d, p.min_distance_m)
+        bp = self._bp
+        path_loss = p.reference_loss_db + self._near10 * math.log10(min(dd, bp)) \
+            + (self._far10 * math.log10(dd / bp) if dd > bp else 0.0)
         # count_walls(grid, pa, pb) from the cells themselves: a centre lies half a cell from any
         # edge, so mapping it back to a cell (as count_walls does, rows first) gives (aj, ai) again
-        walls = count_walls_cells(self.grid, aj, ai, bj, bi) if self.grid is not None else 0
+        walls, wall_loss = wall_loss_cells(self.grid, aj, ai, bj, bi, self._loss_by_code) \
+            if self.grid is not None else (0, 0.0)
         # ShadowField.link_db(pa, pb), from the cached unit values
         shadow = self.shadow.sigma_db * (self._unit_at(ai, aj, pa) + self._unit_at(bi, bj, pb)) / _SQRT2 \
             if self.shadow.sigma_db != 0.0 else 0.0
         power = p.tx_power_dbm + p.tx_antenna_gain_dbi + p.rx_antenna_gain_dbi - path_loss \
-            - walls * p.wall_loss_db - shadow
-        return d, path_loss, walls, shadow, power
+            - wall_loss - shadow
+        return d, path_loss, walls, shadow, power, wall_loss
 
     def _compute_mean_power_cells(self, ai: int, aj: int, bi: int, bj: int) -> float:
         return self._budget_terms(ai, aj, bi, bj)[4]
@@ -259,12 +324,13 @@ class BleChannel(ChannelModel):
         cells = np.floor((pts - (self._ox, self._oy)) / q)
         centres = (self._ox, self._oy) + (cells + 0.5) * q
         p = self.params
-        d = np.hypot(centres[:, 0] - tc[0], centres[:, 1] - tc[1])
-        path_loss = p.reference_loss_db + 10.0 * p.path_loss_exponent * np.log10(np.maximum(d, p.min_distance_m))
-        walls = count_walls_many(self.grid, tc, centres) if self.grid is not None else np.zeros(len(pts))
+        d = p.distance_3d(np.hypot(centres[:, 0] - tc[0], centres[:, 1] - tc[1]))
+        path_loss = p.path_loss_db(d)
+        wall_loss = wall_loss_many(self.grid, tc, centres, self._loss_by_code)[1] if self.grid is not None \
+            else np.zeros(len(pts))
         shadow = self.shadow.link_db_many(tc, centres)
         return p.tx_power_dbm + p.tx_antenna_gain_dbi + p.rx_antenna_gain_dbi - path_loss \
-            - walls * p.wall_loss_db - shadow
+            - wall_loss - shadow
 
     # --- the interface ---------------------------------------------------------------------------
     def airtime_s(self, frame_bytes: int) -> float:
@@ -337,7 +403,8 @@ class BleChannel(ChannelModel):
         p = self.params
         k = f"K {p.rician_k_db:.1f} dB" if p.rician_k > 0 else "Rayleigh"
         return (f"ble: Ptx {p.tx_power_dbm:g} dBm, G {p.tx_antenna_gain_dbi:g}/{p.rx_antenna_gain_dbi:g} dBi, "
-                f"sens {p.sensitivity_dbm:g} dBm, n {p.path_loss_exponent:g}, wall {p.wall_loss_db:g} dB, "
+                f"sens {p.sensitivity_dbm:g} dBm, n {p.path_loss_exponent:g}/{p.far_path_loss_exponent:g} "
+                f"beyond {p.breakpoint_m:.1f} m, walls by material, "
                 f"σ {p.shadowing_sigma_db:g} dB/{p.shadowing_decorrelation_m:g} m, {k}, seed {self.seed}")
 
     def __repr__(self) -> str:

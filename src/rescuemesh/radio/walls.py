@@ -1,7 +1,14 @@
-"""How many walls a straight radio path crosses, counted on the map's occupancy grid.
+"""How many walls a straight radio path crosses, counted on the map's occupancy grid, and their loss.
 
-Owns: the wall count of a segment (one, between two cells, and one transmitter to many receivers). Must not know:
-what a wall costs in dB, radios, the medium.
+Owns: the wall count of a segment (one, between two cells, and one transmitter to many receivers)
+and the sum of the crossed walls' losses given a loss per material code. Must not know: where
+those losses come from (radio/materials.py), radios, the medium.
+
+Each wall crossed (a run of occupied cells along the path) is priced by the dearest material among
+its cells (the grid's `materials`, 0 when the map tags none): `wall_loss_cells` and `wall_loss_many`
+add max(loss_by_code[code]) per wall. The dearest, not the first: where a light partition meets a
+concrete wall a path may enter the junction through the partition's cells and go on through the
+concrete, and pricing it as the partition drew stripes on the radio map.
 
 The path is the straight line between the cells holding its two ends, rasterised with Bresenham's
 algorithm (the cells of `skimage.draw.line`): one cell per step along the major axis, so it never
@@ -104,16 +111,93 @@ def _walls_on_line(padded, r0, c0, r1, c1):  # pragma: no cover - compiled
     return walls
 
 
+def _padded_codes(grid: OccupancyGrid) -> np.ndarray:
+    """The grid's material codes padded like `_padded` (the border: code 0, an untagged wall)."""
+    entry = _PADDED_CODES.get(id(grid))
+    if entry is None or entry[0] is not grid:
+        if len(_PADDED_CODES) >= 8:
+            _PADDED_CODES.clear()
+        codes = grid.materials if grid.materials is not None else np.zeros(grid.occupied.shape, dtype=np.uint8)
+        entry = _PADDED_CODES[id(grid)] = (grid, np.pad(np.asarray(codes, dtype=np.uint8), 1, constant_values=0))
+    return entry[1]
+
+
+_PADDED_CODES: dict[int, tuple[OccupancyGrid, np.ndarray]] = {}
+#: A loss table for any material code (uint8), all zero: for counting walls only.
+_NO_LOSS = np.zeros(256)
+
+
+def wall_loss_cells(grid: OccupancyGrid, r0: int, c0: int, r1: int, c1: int,
+                    loss_by_code: np.ndarray) -> tuple[int, float]:
+    """(walls, loss in dB) on the path from cell (r0, c0) to (r1, c1): the walls as
+    `count_walls_cells` counts them, each priced by its dearest material (module docstring)."""
+    if grid.materials is None:
+        walls = _walls_on_line(_padded(grid), r0, c0, r1, c1)
+        return walls, walls * float(loss_by_code[0])
+    return _wall_loss_on_line(_padded(grid), _padded_codes(grid), loss_by_code, r0, c0, r1, c1)
+
+
+@numba.njit("Tuple((i8, f8))(b1[:, ::1], u1[:, ::1], f8[::1], i8, i8, i8, i8)", cache=True, nogil=True)
+def _wall_loss_on_line(padded, codes, loss_by_code, r0, c0, r1, c1):  # pragma: no cover - compiled
+    """As `_walls_on_line`, also summing each wall's dearest loss_by_code[code] over its cells."""
+    n_rows = padded.shape[0] - 2
+    n_cols = padded.shape[1] - 2
+    d_r = r1 - r0
+    d_c = c1 - c0
+    sign_r = (d_r > 0) - (d_r < 0)
+    sign_c = (d_c > 0) - (d_c < 0)
+    col_major = abs(d_c) >= abs(d_r)
+    n = abs(d_c) if col_major else abs(d_r)
+    minor_span = abs(d_r) if col_major else abs(d_c)
+    steps = max(n, 1)
+    walls = 0
+    loss = 0.0
+    run = 0.0  # the dearest cell of the wall being crossed
+    in_run = False
+    before = False
+    for i in range(n + 1):
+        minor = (2 * i * minor_span + steps) // (2 * steps)
+        if col_major:
+            r = r0 + sign_r * minor
+            c = c0 + sign_c * i
+        else:
+            r = r0 + sign_r * i
+            c = c0 + sign_c * minor
+        pr = min(max(r, -1), n_rows) + 1
+        pc = min(max(c, -1), n_cols) + 1
+        occupied = padded[pr, pc]
+        if occupied and not before and i > 0:
+            walls += 1
+            run = loss_by_code[codes[pr, pc]]
+            in_run = True
+        elif occupied and in_run:
+            run = max(run, loss_by_code[codes[pr, pc]])
+        elif not occupied and in_run:
+            loss += run
+            in_run = False
+        before = occupied
+    return walls, loss + (run if in_run else 0.0)
+
+
 def count_walls_many(grid: OccupancyGrid, a: tuple[float, float], points: np.ndarray) -> np.ndarray:
     """Walls crossed from `a` to each of `points` (shape (N, 2), m); int array of shape (N,).
 
     Equal to `count_walls(grid, a, p)` for every p. Shorter lines are padded with their end cell,
     which adds no transition.
     """
+    return wall_loss_many(grid, a, points, _NO_LOSS)[0]
+
+
+def wall_loss_many(grid: OccupancyGrid, a: tuple[float, float], points: np.ndarray,
+                   loss_by_code: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(walls, loss in dB) from `a` to each of `points` (shape (N, 2), m), as `wall_loss_cells`."""
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     out = np.zeros(len(pts), dtype=np.int64)
+    loss = np.zeros(len(pts))
     if len(pts) == 0:
-        return out
+        return out, loss
+    table = np.asarray(loss_by_code, dtype=float)
+    tagged = grid.materials is not None
     r0, c0 = _cell(grid, float(a[0]), float(a[1]))
     r1 = np.floor((pts[:, 1] - grid.origin_y) / grid.resolution).astype(np.int64)
     c1 = np.floor((pts[:, 0] - grid.origin_x) / grid.resolution).astype(np.int64)
@@ -133,5 +217,19 @@ def count_walls_many(grid: OccupancyGrid, a: tuple[float, float], points: np.nda
         rows = r0 + sr * np.where(col_major, minor, i)
         cols = c0 + sc * np.where(col_major, i, minor)
         occ = _occupied_cells(grid, rows, cols)
-        out[idx] = np.count_nonzero(occ[:, 1:] & ~occ[:, :-1], axis=1)
-    return out
+        entered = occ[:, 1:] & ~occ[:, :-1]
+        out[idx] = np.count_nonzero(entered, axis=1)
+        if tagged:
+            n_rows, n_cols = grid.occupied.shape
+            pr = np.minimum(np.maximum(rows[:, 1:], -1), n_rows) + 1
+            pc = np.minimum(np.maximum(cols[:, 1:], -1), n_cols) + 1
+            # each wall's dearest cell: number the walls along each line, take the max per number
+            wall_no = np.cumsum(entered, axis=1)
+            cell_loss = np.where(occ[:, 1:] & (wall_no > 0), table[_padded_codes(grid)[pr, pc]], 0.0)
+            dearest = np.zeros((len(idx), int(wall_no.max()) + 1))
+            np.maximum.at(dearest, (np.repeat(np.arange(len(idx)), wall_no.shape[1]), wall_no.ravel()),
+                          cell_loss.ravel())
+            loss[idx] = dearest[:, 1:].sum(axis=1)
+    if not tagged:
+        loss = out * float(table[0])
+    return out, loss

@@ -18,10 +18,16 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib import patheffects  # noqa: E402
+from matplotlib.colors import ListedColormap  # noqa: E402
 from matplotlib.patches import Rectangle  # noqa: E402
+
+from rescuemesh.maps.model import WallMaterial  # noqa: E402
 
 from rescuemesh.radio.channel import ChannelModel  # noqa: E402
 
+#: Wall colours by material code (0: untagged, then maps.model.WallMaterial's order: light, brick,
+#: concrete, glass, wood): the heavier the wall, the darker.
+_MATERIAL_COLOURS = ("#aaaaaa", "#e0e0e0", "#b5653d", "#4d4d4d", "#9ecae1", "#8c6d46")
 #: Spacing in m of the receiver points the map is computed at.
 RECEIVER_STEP_M = 0.1
 #: Frame size in bytes of the delivery map: a control frame (ARCHITECTURE: wire budget).
@@ -92,9 +98,14 @@ def write_radio_map(map_model, channel: ChannelModel, tx_xy: tuple[float, float]
             _contour(ax, xs, ys, values, float(sensitivity), f"sensitivity {sensitivity:g} dBm")
     fig.colorbar(image, ax=ax, label=label, shrink=0.85, pad=0.02)
 
-    walls = np.ma.masked_where(~grid.occupied, np.ones(grid.shape))
-    ax.imshow(walls, origin="lower", extent=extent, cmap="gray", vmin=0, vmax=1.5, interpolation="nearest",
-              zorder=3)
+    codes = grid.materials if grid.materials is not None else np.zeros(grid.shape, dtype=np.uint8)
+    walls = np.ma.masked_where(~grid.occupied, codes)
+    ax.imshow(walls, origin="lower", extent=extent, cmap=ListedColormap(_MATERIAL_COLOURS), vmin=-0.5,
+              vmax=len(_MATERIAL_COLOURS) - 0.5, interpolation="nearest", zorder=3)
+    if grid.materials is not None:  # a legend entry per material the map uses
+        for code in sorted(set(np.unique(codes[grid.occupied]).tolist())):
+            name = "untagged wall" if code == 0 else f"{list(WallMaterial)[code - 1].value} wall"
+            ax.add_patch(Rectangle((0, 0), 0, 0, facecolor=_MATERIAL_COLOURS[code], label=name))
     for name, rect in map_model.regions.items():
         cx, cy = rect.center
         ax.text(cx, cy, name, color="white", fontsize=8, ha="center", va="center", style="italic", zorder=4,
@@ -111,7 +122,7 @@ def write_radio_map(map_model, channel: ChannelModel, tx_xy: tuple[float, float]
     ax.set_ylabel("y [m]")
     title = f"{map_model.name}: {quantity.value} from ({tx[0]:g}, {tx[1]:g})\n{channel.describe()}"
     ax.set_title("\n".join(textwrap.wrap(title, 160, replace_whitespace=False)), fontsize=9)
-    ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.08), fontsize=8, frameon=False, ncol=3)
+    ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.08), fontsize=8, frameon=False, ncol=4)
     fig.tight_layout()
     out_path = Path(out_path)
     fig.savefig(out_path)
