@@ -63,7 +63,7 @@ class FakeAir:
             self.clock.t = max(self.clock.t, at)
             what()
 
-    def drain(self) -> list[bytes]:
+    def drain(self, limit: int | None = None) -> list[bytes]:  # hands everything: the loop cuts
         ready = [f for at, f in self.inbox if at <= self.clock.t]
         self.inbox = [(at, f) for at, f in self.inbox if at > self.clock.t]
         return ready
