@@ -161,6 +161,11 @@ class RobotBrain(SensorCommands):
 
     # ----- the loop -----
 
+    def heartbeat_now(self) -> None:
+        """Send a Heartbeat at the next step, then keep the usual period: a runtime that learns of a
+        new peer (a Zenoh session connecting) lets it hear our epoch and know us at once."""
+        self._next_heartbeat_s = 0.0
+
     def step(self, now: float) -> None:
         """Handle what the endpoint and the network reported, keep links and jobs, stream poses,
         heartbeat, and drive the body."""

@@ -332,6 +332,8 @@ def _run(options: dict, counter: BootCounter, out: TextIO, err: TextIO, zenoh) -
     trajectory: list[list[float]] = []
 
     def on_step(loop: RealtimeLoop, now: float) -> None:
+        if link.new_peers():  # a robot's link came: it hears our epoch now, not at our next Heartbeat
+            brain.heartbeat_now()
         if paper is not None:
             paper.step(now)  # requests from ROS nodes, on this thread (the brain is not thread-safe)
         if mission is not None:

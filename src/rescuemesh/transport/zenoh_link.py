@@ -86,6 +86,12 @@ def air_wildcard(team: str) -> str:
     return f"{KEY_PREFIX}/{team}/air/*"
 
 
+def presence_key(team: str, address: int) -> str:
+    """The liveliness token of robot `address`'s link: declared once it hears the team's air."""
+    air_key(team, address)
+    return f"{KEY_PREFIX}/{team}/present/{address}"
+
+
 def check_team(team: str) -> str:
     """`team` if it is a valid team name (one key chunk); else ValueError."""
     if not (isinstance(team, str) and _TEAM.fullmatch(team)):
@@ -207,6 +213,7 @@ class ZenohLink:
         self._queues: dict[str, deque[tuple[int, bytes]]] = {}  # key -> (arrival number, frame)
         self._waiting = 0
         self._arrivals = 0
+        self._joined = threading.Event()  # another robot's presence token arrived (new_peers)
         self._closed = False
         # express: no batching (a 20-byte frame leaves at once); DROP: a congested link drops
         # frames like a busy radio instead of blocking the robot's loop (the protocol retries)
@@ -214,6 +221,11 @@ class ZenohLink:
                                                     congestion_control=zenoh.CongestionControl.DROP)
         self._subscriber = session.declare_subscriber(air_wildcard(team), self._on_sample,
                                                       allowed_origin=zenoh.Locality.REMOTE)
+        self._presence_key = presence_key(team, address)
+        liveliness = session.liveliness()
+        self._presence = liveliness.declare_subscriber(f"{KEY_PREFIX}/{team}/present/*", self._on_presence,
+                                                       history=True)
+        self._token = liveliness.declare_token(self._presence_key)  # after the subscriber: we hear now
 
     @classmethod
     def open(cls, team: str, address: int, *, listen: Sequence[str] = (), connect: Sequence[str] = (),
@@ -277,6 +289,16 @@ class ZenohLink:
         taken.sort(key=lambda item: item[0])
         return [frame for _, frame in taken]
 
+    def new_peers(self) -> bool:
+        """True when a robot's link came (or came back) on the team's air since the previous call: its
+        presence token, declared after its subscriber, reached us, so it hears what we send now. The
+        robot's loop then announces itself at once instead of at its next Heartbeat. (A token admits
+        nobody: only frames that open under the team key count for the mesh.)"""
+        if not self._joined.is_set():
+            return False
+        self._joined.clear()
+        return True
+
     def close(self, timeout_s: float = CLOSE_TIMEOUT_S) -> bool:
         """Stop sending and hearing; close the session if this link opened it. Bounded: returns
         False when Zenoh did not finish within `timeout_s` s (its threads are left to the exit)."""
@@ -285,7 +307,7 @@ class ZenohLink:
         self._closed = True
 
         def shut() -> None:
-            for entity in (self._subscriber, self._publisher):
+            for entity in (self._token, self._presence, self._subscriber, self._publisher):
                 try:
                     entity.undeclare()
                 except zenoh.ZError:
@@ -299,6 +321,10 @@ class ZenohLink:
         return not closer.is_alive()
 
     # --- Zenoh's side (its threads) --------------------------------------------------------------
+
+    def _on_presence(self, sample: zenoh.Sample) -> None:
+        if sample.kind == zenoh.SampleKind.PUT and str(sample.key_expr) != self._presence_key:
+            self._joined.set()
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         stats = self.stats
