@@ -262,15 +262,15 @@ class RunRecorder:
 
     def _publish_logs(self) -> None:
         for name in self.names:
-            log = self.rt.brains[name].log  # the one read of this brain this period
-            for event in log[self._log_done[name]:]:
+            log = self.rt.brains[name].log  # the one read of this brain this period (a ring: brain.BrainLog)
+            for event in log.since(self._log_done[name]):
                 level = LogLevel.Warning if event.kind in WARNING_KINDS else LogLevel.Info
                 text = f"{event.kind}: {event.detail}" if event.detail else event.kind
                 self._emit(self._log, "/log", Log(timestamp=_stamp(event.time_s), level=level, message=text,
                                                   name=event.robot), event.time_s)
                 if event.kind in ("behaviour_started", "behaviour_ended"):
                     self._emit(self._behaviours, "/behaviours", _behaviour(event), event.time_s)
-            self._log_done[name] = len(log)
+            self._log_done[name] = log.total
 
     def _keep(self, name: str, x: float, y: float, z: float, yaw: float) -> None:
         last = self._last_kept.get(name)

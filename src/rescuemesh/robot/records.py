@@ -8,11 +8,15 @@ simulator, the transport, the clock.
 
 from __future__ import annotations
 
+import itertools
 import math
+from collections import deque
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 from rescuemesh.geometry import Pose2D
-from rescuemesh.protocol import MessageType, Pose, Reason, ResultCode
+from rescuemesh.protocol import EncodeError, MessageType, Pose, Reason, ResultCode
+from rescuemesh.protocol.wire import position_to_units
 from rescuemesh.robot.behaviours import Behaviour
 from rescuemesh.robot.policy import MOTION_LEVEL, Priority, Rank, Resource
 
@@ -137,3 +141,52 @@ def to_wire_pose(pose: Pose2D) -> Pose:
 
 def from_wire_pose(pose: Pose) -> Pose2D:
     return Pose2D(pose.x, pose.y, pose.yaw)
+
+
+#: Entries a robot's log keeps (about 2 MB): a peer with the key that sends commands without end
+#: cannot grow it further; a long simulated run stays far below it.
+LOG_CAPACITY = 50_000
+
+
+class BrainLog:
+    """A robot's log: a ring of the latest `capacity` BrainEvents. `total` counts every entry ever
+    appended, `dropped` the oldest ones the ring let go; `since(n)` gives the entries from the n-th
+    appended on (those still held), so a reader that remembers `total` never reads one twice."""
+
+    def __init__(self, capacity: int = LOG_CAPACITY) -> None:
+        if not (isinstance(capacity, int) and capacity >= 1):
+            raise ValueError(f"capacity must be an int >= 1, got {capacity!r}")
+        self._ring: deque[BrainEvent] = deque(maxlen=capacity)
+        self.total = 0
+
+    @property
+    def dropped(self) -> int:
+        return self.total - len(self._ring)
+
+    def append(self, event: BrainEvent) -> None:
+        self._ring.append(event)
+        self.total += 1
+
+    def since(self, index: int) -> list[BrainEvent]:
+        start = max(0, index - self.dropped)
+        return list(itertools.islice(self._ring, start, None))
+
+    def __len__(self) -> int:
+        return len(self._ring)
+
+    def __iter__(self) -> Iterator[BrainEvent]:
+        return iter(self._ring)
+
+    def __getitem__(self, index):
+        return list(self._ring)[index] if isinstance(index, slice) else self._ring[index]
+
+
+def fits_wire(pose: Pose2D) -> bool:
+    """Whether `pose` can travel in a protocol message: x and y finite and within -327.68..327.67 m
+    after rounding to cm (docs/protocol.md), yaw finite."""
+    try:
+        position_to_units(pose.x)
+        position_to_units(pose.y)
+    except EncodeError:
+        return False
+    return math.isfinite(pose.yaw)

@@ -22,7 +22,7 @@ from typing import NoReturn, TextIO
 
 from rescuemesh.geometry import Pose2D
 from rescuemesh.maps.grid import OccupancyGrid
-from rescuemesh.protocol import ResultCode
+from rescuemesh.protocol import EncodeError, ResultCode
 from rescuemesh.robot import RobotBrain, robot_address, robot_name
 from rescuemesh.runtime.assembly import assemble_robot, team_sealer
 from rescuemesh.runtime.boot_counter import BootCounter, BootCounterError, default_state_dir
@@ -235,8 +235,13 @@ class Mission:
         pending = any(not c.failed and c.result is None for c in brain.outgoing.values() if c.peer == self.follower)
         if pending or not loop.stack.is_reachable(self.follower, now):
             return
+        if brain.pose_fault is not None:
+            return  # our pose cannot be sent: ask once it can
         if len(self.follow_seqs) < FOLLOW_ATTEMPTS:
-            self.follow_seqs.append(brain.command_follow(self.follower, now))
+            try:
+                self.follow_seqs.append(brain.command_follow(self.follower, now))
+            except EncodeError:  # the pose left the wire's range since the step: the next step reports it
+                return
         else:
             self._finish(now)  # given up
 
@@ -460,6 +465,7 @@ def _report(options, brain, stack, body, link, loop, mission, trajectory) -> dic
         "link": link.stats.as_dict(), "loop": loop.stats.as_dict(),
         "trajectory": trajectory,
         "log": [[e.time_s, e.kind, e.detail] for e in brain.log],
+        "log_dropped": brain.log.dropped,
     }
 
 
