@@ -24,6 +24,7 @@ from foxglove.messages import (Color, CubePrimitive, CylinderPrimitive, FrameTra
 from matplotlib.colors import to_rgb
 
 from rescuemesh.protocol import BROADCAST, MessageType
+from rescuemesh.report.live_origin import OriginGuard, origins_from_env
 from rescuemesh.report.plots import robot_colours
 from rescuemesh.robot import robot_name
 
@@ -107,21 +108,31 @@ class RunRecorder:
     stopped even when the run fails). Messages carry simulated time: log time = publish time =
     header timestamp, in ns from the start of the run."""
 
-    def __init__(self, rt, map_model, path: Path | None, *, live_port: int | None = None) -> None:
+    def __init__(self, rt, map_model, path: Path | None, *, live_port: int | None = None,
+                 allowed_origins: tuple[str, ...] | None = None) -> None:
+        """`allowed_origins`: web origins besides the local ones that may watch --live (default: from
+        $RESCUEMESH_LIVE_ORIGINS; report/live_origin.py)."""
         self.rt = rt
         self.path = path
         self._context = foxglove.Context()
-        self._writer = self._server = None
+        self._writer = self._server = self._guard = None
         if path is not None:
             path.parent.mkdir(parents=True, exist_ok=True)
             self._writer = foxglove.open_mcap(path, allow_overwrite=True, context=self._context)
         self._resend: set[str] = set()
         self._lock = threading.Lock()
         if live_port is not None:
+            # the SDK's server on a private port, behind a front that checks each client's Origin
+            # (a web page in the operator's browser must not read the run: live_origin.py)
             try:
-                self._server = foxglove.start_server(name="rescuemesh", host="127.0.0.1", port=live_port,
+                self._guard = OriginGuard("127.0.0.1", live_port, 0, allowed_origins
+                                          if allowed_origins is not None else origins_from_env())
+                self._server = foxglove.start_server(name="rescuemesh", host="127.0.0.1", port=0,
                                                      context=self._context, server_listener=_Subscriptions(self))
+                self._guard.backend_port = self._server.port
             except Exception as error:  # the SDK raises its own RuntimeError subclasses
+                if self._guard is not None:
+                    self._guard.close()
                 self._close_writer()
                 raise LiveServerError(f"cannot serve --live on 127.0.0.1:{live_port}: {error}") from None
         ctx = self._context
@@ -211,6 +222,9 @@ class RunRecorder:
 
     def close(self) -> None:
         """Close the file and stop the server, publishing nothing more."""
+        if self._guard is not None:
+            self._guard.close()
+            self._guard = None
         if self._server is not None:
             self._server.stop()
             self._server = None
@@ -226,7 +240,7 @@ class RunRecorder:
     @property
     def live_url(self) -> str | None:
         """ws://127.0.0.1:PORT while the live server runs, else None."""
-        return f"ws://127.0.0.1:{self._server.port}" if self._server is not None else None
+        return f"ws://127.0.0.1:{self._guard.port}" if self._guard is not None else None
 
     # --- publishing --------------------------------------------------------------------------
 
