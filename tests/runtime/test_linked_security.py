@@ -25,7 +25,7 @@ from rescuemesh.mesh.security import FrameSealer
 from rescuemesh.protocol import FrameError
 from rescuemesh.runtime.boot_counter import BootCounter
 from rescuemesh.runtime.link_bench import free_port
-from rescuemesh.transport.zenoh_link import air_key, air_wildcard, link_secret, open_session
+from rescuemesh.transport.zenoh_link import air_key, link_secret, open_session
 
 TEAM = f"sec{os.getpid()}"
 ACCEPTED = re.compile(r"accepted the Follow after ([0-9.]+) s")

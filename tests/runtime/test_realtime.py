@@ -278,10 +278,13 @@ def test_the_brains_log_is_a_ring_with_a_count_of_what_it_dropped():
     # this used to grow without bound: a key holder's commands each add a line
     from rescuemesh.robot.records import BrainEvent, BrainLog
 
-    log = BrainLog(capacity=3)
-    for i in range(5):
+    log = BrainLog(capacity=8)  # holds at most 8 + 8 // 8 = 9, then keeps the latest 8
+    for i in range(10):
         log.append(BrainEvent(float(i), "robot_1", "command_received", str(i)))
-    assert len(log) == 3 and log.total == 5 and log.dropped == 2
-    assert [e.detail for e in log] == ["2", "3", "4"]
-    assert [e.detail for e in log.since(1)] == ["2", "3", "4"] and [e.detail for e in log.since(4)] == ["4"]
-    assert log.since(5) == [] and log[-1].detail == "4" and [e.detail for e in log[1:]] == ["3", "4"]
+    assert len(log) == 8 and log.total == 10 and log.dropped == 2
+    assert [e.detail for e in log] == [str(i) for i in range(2, 10)]
+    assert [e.detail for e in log.since(1)][:1] == ["2"] and [e.detail for e in log.since(9)] == ["9"]
+    assert log.since(10) == [] and log[-1].detail == "9"
+    for i in range(10, 10_000):
+        log.append(BrainEvent(float(i), "robot_1", "command_received", str(i)))
+    assert len(log) <= 9 and log.total == 10_000

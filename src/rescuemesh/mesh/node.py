@@ -45,9 +45,10 @@ the relay decision and the outbox; must not know radios, clocks, random numbers 
 # (replay.py) drops a frame already accepted or too old (dropped_replay), a segment frame by its own
 # (seq, SegO, round) identity, so a replayed segment refreshes no liveness, opens no reassembly and
 # is not relayed; a transfer whose reassembly completed or expired here opens none again. A frame
-# that opens under a newer epoch of its source emits PeerRestarted (its old reassemblies are dropped). We seal under our endpoint's epoch and re-seal
-# relays with TTL - 1 under the source's. The caller draws relay_delay_s (Bluetooth Mesh relays wait
-# a random 0..~20 ms so that neighbours do not all transmit at once); the node draws nothing.
+# that opens under a newer epoch of its source emits PeerRestarted (its old reassemblies are
+# dropped). We seal under our endpoint's epoch and re-seal relays with TTL - 1 under the source's.
+# The caller draws relay_delay_s (Bluetooth Mesh relays wait a random 0..~20 ms so that neighbours
+# do not all transmit at once); the node draws nothing.
 
 from __future__ import annotations
 
