@@ -215,7 +215,7 @@ def _follow_time(tmp_path: Path, path: Path, team_key: bytes, flood_per_s: float
     port = free_port()
     state = tmp_path / f"state-{tag}"
     follower = _robot("robot_2", path, state, "--listen", f"tcp/127.0.0.1:{port}", "--duration", "60")
-    flooder, stop, rate = None, threading.Event(), []
+    flooder, stop, rate, sprayer = None, threading.Event(), [], None
     leader = None
     try:
         _listening(follower, port)
@@ -237,7 +237,8 @@ def _follow_time(tmp_path: Path, path: Path, team_key: bytes, flood_per_s: float
                     if ahead > 0:
                         time.sleep(ahead)
 
-            threading.Thread(target=spray, daemon=True).start()
+            sprayer = threading.Thread(target=spray, daemon=True)
+            sprayer.start()
             time.sleep(1.0)
         leader = _robot("robot_1", path, state, "--connect", f"tcp/127.0.0.1:{port}", "--follow", "robot_2",
                         "--linger", "60", "--duration", "60")
@@ -247,6 +248,8 @@ def _follow_time(tmp_path: Path, path: Path, team_key: bytes, flood_per_s: float
         return accepted
     finally:
         stop.set()
+        if sprayer is not None:
+            sprayer.join(10.0)
         if flooder is not None:
             flooder.close()
         for process in (leader, follower):
