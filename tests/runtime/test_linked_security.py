@@ -118,6 +118,7 @@ def test_a_robot_killed_and_restarted_twice_counts_1_2_3_is_obeyed_at_once_and_n
         for run in range(3):
             leader = _robot("robot_1", path, state, "--connect", f"tcp/127.0.0.1:{port_2}",
                             "--connect", f"tcp/127.0.0.1:{port_rec}", "--follow", "robot_2",
+                            "--start", f"{0.5 * run},0,0",  # each run from elsewhere: other plaintexts
                             "--linger", "60", "--duration", "60")
             leaders.append(leader)
             accepted.append(float(_line_matching(leader, ACCEPTED, 20.0).group(1)))
