@@ -118,9 +118,13 @@ def _writable_folder(folder: Path) -> Path:
     """Create `folder` (and check it takes files) before a run, not after it."""
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        probe = folder / ".rescuemesh-write-test"
-        probe.write_bytes(b"")
-        probe.unlink()
+        # a new file of a random name, created exclusively (O_EXCL: a planted symlink is never followed,
+        # an existing file never truncated); this used to write through `.rescuemesh-write-test`
+        import tempfile
+
+        fd, probe = tempfile.mkstemp(prefix=".rescuemesh-write-test-", dir=folder)
+        os.close(fd)
+        os.unlink(probe)
     except OSError as error:
         raise UsageError(f"cannot write to output folder {str(folder)!r}: {error.strerror or error}") from None
     return folder

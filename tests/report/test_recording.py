@@ -280,3 +280,39 @@ def test_a_live_port_already_taken_is_a_one_line_error_and_nothing_is_left_runni
         port = taken.getsockname()[1]
         with pytest.raises(LiveServerError, match=f"127.0.0.1:{port}"):
             run_scenario("follow", ScenarioOptions(time_limit_s=1.0), out_dir=tmp_path, live_port=port)
+
+
+def _upgrade_status(port: int, origin: str | None) -> str:
+    """The status line the live server answers a WebSocket upgrade with, sent with `origin`."""
+    with socket.create_connection(("127.0.0.1", port), timeout=5) as sock:
+        key = base64.b64encode(os.urandom(16)).decode()
+        header = f"Origin: {origin}\r\n" if origin is not None else ""
+        sock.sendall((f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+                      f"Sec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n{header}"
+                      f"Sec-WebSocket-Protocol: foxglove.sdk.v1\r\n\r\n").encode())
+        data = b""
+        while b"\r\n" not in data:
+            chunk = sock.recv(4096)
+            if not chunk:
+                break
+            data += chunk
+        return data.split(b"\r\n")[0].decode()
+
+
+def test_the_live_server_admits_local_origins_only_by_default(monkeypatch):
+    # this used to accept any Origin: a web page in the operator's browser could read the stream
+    monkeypatch.delenv("RESCUEMESH_LIVE_ORIGINS", raising=False)
+    map_model = load_map(office_map_path())
+    scenario = get_scenario("follow")(ScenarioOptions(seed=0), map_model)
+    rt = SimRuntime(map_model, scenario.starts(), scenario.sim_config())
+    port = free_port()
+    with RunRecorder(rt, map_model, None, live_port=port, allowed_origins=("https://app.foxglove.dev",)):
+        switching = "HTTP/1.1 101 Switching Protocols"
+        assert _upgrade_status(port, None) == switching  # a native client (the desktop app, a script)
+        assert _upgrade_status(port, "http://localhost:3000") == switching
+        assert _upgrade_status(port, "http://127.0.0.1") == switching
+        assert _upgrade_status(port, "https://app.foxglove.dev") == switching  # allowed by the operator
+        for origin in ("https://evil.example", "http://localhost.evil.example", "null", "file://"):
+            assert _upgrade_status(port, origin) == "HTTP/1.1 403 Forbidden", origin
+    with pytest.raises(ConnectionRefusedError):
+        socket.create_connection(("127.0.0.1", port), timeout=2).close()

@@ -63,7 +63,7 @@ class FakeAir:
             self.clock.t = max(self.clock.t, at)
             what()
 
-    def drain(self) -> list[bytes]:
+    def drain(self, limit: int | None = None) -> list[bytes]:  # hands everything: the loop cuts
         ready = [f for at, f in self.inbox if at <= self.clock.t]
         self.inbox = [(at, f) for at, f in self.inbox if at > self.clock.t]
         return ready
@@ -251,3 +251,40 @@ def test_exit_when_done_counts_from_the_latest_end():
     assert not until(5.0)
     mission.done_s = 5.0
     assert not until(5.0) and until(5.01 + EXIT_LINGER_S)
+
+
+@pytest.mark.parametrize("x", [330.0, math.nan], ids=["x=330 m", "NaN"])
+def test_a_pose_the_wire_cannot_carry_halts_the_leader_with_a_warning_and_no_exception(x, caplog):
+    # this used to raise EncodeError out of brain.step (its next PoseUpdate) and end the robot process
+    clock, r1, r2, air, loop = pair()
+    mission = Mission(follower=2, goal=None, linger_s=30.0)
+    air.peer_hook = lambda peer, now: mission.on_step(SimpleNamespace(brain=peer.brain, stack=peer.stack), now)
+    loop.run(3.0, until=lambda now: mission.accepted_s is not None)
+    assert mission.follow_result == ResultCode.ACCEPTED and r1.brain.streams
+    r1.body.set_velocity(0.3, 0.0)
+    r1.body._x = x  # the leader's odometry jumps (a drift past 327.67 m, a driver's NaN)
+    with caplog.at_level("WARNING"):
+        loop.run(6.0)  # robot_1 is stepped on the same clock: nothing may raise
+    assert r1.brain.pose_fault is not None and not r1.brain.streams
+    assert r1.body._v == 0.0 and r1.body._w == 0.0  # halted
+    assert [e.kind for e in r1.brain.log].count("pose_fault") == 1  # reported once, not every step
+    assert any("outside the wire's range" in record.getMessage() for record in caplog.records)
+    r1.body._x = 10.0  # back in range: the fault clears
+    loop.run(0.5)
+    assert r1.brain.pose_fault is None and "pose_fault_cleared" in [e.kind for e in r1.brain.log]
+
+
+def test_the_brains_log_is_a_ring_with_a_count_of_what_it_dropped():
+    # this used to grow without bound: a key holder's commands each add a line
+    from rescuemesh.robot.records import BrainEvent, BrainLog
+
+    log = BrainLog(capacity=8)  # holds at most 8 + 8 // 8 = 9, then keeps the latest 8
+    for i in range(10):
+        log.append(BrainEvent(float(i), "robot_1", "command_received", str(i)))
+    assert len(log) == 8 and log.total == 10 and log.dropped == 2
+    assert [e.detail for e in log] == [str(i) for i in range(2, 10)]
+    assert [e.detail for e in log.since(1)][:1] == ["2"] and [e.detail for e in log.since(9)] == ["9"]
+    assert log.since(10) == [] and log[-1].detail == "9"
+    for i in range(10, 10_000):
+        log.append(BrainEvent(float(i), "robot_1", "command_received", str(i)))
+    assert len(log) <= 9 and log.total == 10_000

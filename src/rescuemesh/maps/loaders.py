@@ -21,7 +21,9 @@ the building, and leaving it out keeps the number of boxes down.
 Limits (docs/design.md, "Map limits"): a grid of at most MAX_MAP_CELLS cells (checked from the
 image header before any pixel is decoded, and from the bounds before a wall map is rasterised);
 bounds within POSE_RANGE_M (poses go on the air as int16 cm); at most MAX_OCCUPIED_FRACTION of a
-ROS map occupied; no YAML aliases; every value quoted in a MapError cut to about 80 characters.
+ROS map occupied; at most MAX_WALL_BOXES wall boxes (listed, or merged from a ROS map's occupied
+cells); no YAML aliases, no nesting deeper than Python's recursion allows; every value quoted in a
+MapError cut to about 80 characters.
 """
 
 from __future__ import annotations
@@ -39,7 +41,7 @@ import yaml
 from rescuemesh.geometry import Pose2D
 from rescuemesh.maps.grid import OccupancyGrid
 from rescuemesh.maps.model import MapError, MapModel, Rect, WallMaterial
-from rescuemesh.maps.raster import cells_to_rects, rasterise_walls
+from rescuemesh.maps.raster import TooManyBoxes, cells_to_rects, rasterise_walls
 
 DEFAULT_WALL_HEIGHT = 0.5  # m
 # Defaults of the Nav2 map_server when a map YAML leaves the thresholds out.
@@ -56,6 +58,10 @@ POSE_RANGE_M = (-327.68, 327.67)
 # A ROS map with more of its cells occupied leaves no room to drive: almost surely inverted.
 MAX_OCCUPIED_FRACTION = 0.9
 MAX_SHOWN_CHARS = 80  # a value quoted in a MapError is cut to about this many characters
+# Wall boxes a map may become: each is a MuJoCo box and a rectangle every lidar ray is tested against.
+# A checkerboard ROS map of 1000 x 1000 cells became 500,000 (5.8 s, 169 MB before the run began);
+# a SLAM map with speckle gives about 1,000 (tests/maps/test_slam_like.py), the office 18.
+MAX_WALL_BOXES = 20_000
 
 _WALL_MAP_KEYS = {"name", "wall_height", "walls", "regions", "doorways", "starts", "goals", "bases"}
 
@@ -150,6 +156,8 @@ def _read_yaml(path: Path, fail: _Failer) -> dict[str, Any]:
         fail(f"cannot read the map file ({_cut(exc.strerror or exc)})")
     try:
         doc = yaml.load(text, Loader=_NoAliasLoader)  # a SafeLoader that refuses aliases
+    except RecursionError:  # this used to escape as a traceback: [[[[... nested thousands deep
+        fail("nests its values too deeply to be a map file (YAML lists or mappings thousands of levels deep)")
     except _AliasFound as exc:
         fail(f"YAML aliases are not allowed in a map file (line {exc.line}); write the values out")
     except yaml.YAMLError as exc:
@@ -282,6 +290,8 @@ def _load_wall_map(path: Path, doc: dict[str, Any], resolution: float, fail: _Fa
     raw_walls = _sequence(doc, "walls", fail)
     if not raw_walls:
         fail("'walls' is empty; a wall map needs at least one wall")
+    if len(raw_walls) > MAX_WALL_BOXES:
+        fail(f"lists {len(raw_walls):,} walls; the limit is {MAX_WALL_BOXES:,} wall boxes")
     tagged = [_tagged_rect(v, f"walls[{i}]", fail) for i, v in enumerate(raw_walls)]
     walls = tuple(rect for rect, _ in tagged)
     materials = tuple(material for _, material in tagged)
@@ -366,11 +376,20 @@ def _load_ros_map(path: Path, doc: dict[str, Any], fail: _Failer) -> MapModel:
         name=_name(doc, path, fail),
         source=path,
         bounds=Rect(ox, oy, ox + cols * resolution, oy + rows * resolution),
-        walls=cells_to_rects(occupied, resolution, ox, oy),
+        walls=_boxes(occupied, resolution, ox, oy, fail),
         grid=grid,
         wall_height=_wall_height(doc, fail),
         **extras,
     )
+
+
+def _boxes(occupied: np.ndarray, resolution: float, ox: float, oy: float, fail: _Failer) -> tuple[Rect, ...]:
+    """The occupied cells merged into wall boxes; a map that needs more than MAX_WALL_BOXES is refused."""
+    try:
+        return cells_to_rects(occupied, resolution, ox, oy, limit=MAX_WALL_BOXES)
+    except TooManyBoxes as exc:
+        fail(f"its occupied cells make at least {exc.count:,} wall boxes; the limit is {exc.limit:,} "
+             "(a noisy or checkered image: clean it, or threshold it harder)")
 
 
 def _check_occupied_fraction(fraction: float, mode: str, negate: bool, fail: _Failer) -> None:

@@ -47,12 +47,21 @@ def rasterise_walls(walls: Iterable[Rect], bounds: Rect, resolution: float,
                          materials=codes)
 
 
-def merge_cells(occupied: np.ndarray) -> list[tuple[int, int, int, int]]:
+class TooManyBoxes(ValueError):
+    """More than `limit` rectangles would cover the mask (at least `count` were found)."""
+
+    def __init__(self, count: int, limit: int) -> None:
+        super().__init__(f"at least {count} boxes, more than {limit}")
+        self.count, self.limit = count, limit
+
+
+def merge_cells(occupied: np.ndarray, limit: int | None = None) -> list[tuple[int, int, int, int]]:
     """Cover the True cells of a 2D mask with few axis-aligned rectangles, exactly and without overlap.
 
     Greedy: each row is cut into maximal horizontal runs, then a run identical (same first and last
     column) in consecutive rows extends one rectangle. Returns (row0, col0, row1, col1) with row1 and
-    col1 exclusive, sorted.
+    col1 exclusive, sorted. With `limit`, raises TooManyBoxes as soon as more rectangles than that are
+    certain (every run open is one more), so a checkerboard costs no more than `limit` rectangles.
     """
     mask = np.asarray(occupied, dtype=bool)
     rows = mask.shape[0]
@@ -69,12 +78,16 @@ def merge_cells(occupied: np.ndarray) -> list[tuple[int, int, int, int]]:
             rects.append((open_runs.pop(run), run[0], r, run[1]))
         for run in runs:
             open_runs.setdefault(run, r)
+        if limit is not None and len(rects) + len(open_runs) > limit:
+            raise TooManyBoxes(len(rects) + len(open_runs), limit)
     rects.sort()
     return rects
 
 
-def cells_to_rects(occupied: np.ndarray, resolution: float, origin_x: float, origin_y: float) -> tuple[Rect, ...]:
-    """Map-frame boxes in m covering the True cells of `occupied` (row 0 = lowest y), see `merge_cells`."""
+def cells_to_rects(occupied: np.ndarray, resolution: float, origin_x: float, origin_y: float,
+                   limit: int | None = None) -> tuple[Rect, ...]:
+    """Map-frame boxes in m covering the True cells of `occupied` (row 0 = lowest y), see `merge_cells`
+    (TooManyBoxes beyond `limit`)."""
     return tuple(
         Rect(
             origin_x + c0 * resolution,
@@ -82,5 +95,5 @@ def cells_to_rects(occupied: np.ndarray, resolution: float, origin_x: float, ori
             origin_x + c1 * resolution,
             origin_y + r1 * resolution,
         )
-        for r0, c0, r1, c1 in merge_cells(occupied)
+        for r0, c0, r1, c1 in merge_cells(occupied, limit)
     )

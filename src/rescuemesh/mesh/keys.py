@@ -82,9 +82,12 @@ def load_team_key(path: str | os.PathLike[str]) -> bytes:
     or not exactly one line of 32 hex digits."""
     name = os.fsdecode(path)
     try:
-        with open(path, "rb") as handle:
+        # O_NONBLOCK: a FIFO (or a device) opens at once instead of waiting for a writer, and is
+        # refused below before anything is read from it; this used to hang the start on a FIFO
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+        with os.fdopen(fd, "rb") as handle:
             mode = os.fstat(handle.fileno()).st_mode
-            raw = handle.read(4096)
+            raw = handle.read(4096) if stat.S_ISREG(mode) else b""
     except FileNotFoundError:
         raise KeyFileError(f"{name}: no such key file (make one with: rescuemesh keys new FILE)") from None
     except OSError as exc:

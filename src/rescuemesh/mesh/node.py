@@ -42,10 +42,13 @@ the relay decision and the outbox; must not know radios, clocks, random numbers 
 # first: a frame without the AUTH flag, from a source whose epoch is unknown (no Heartbeat heard
 # yet), or whose MIC does not verify is dropped (dropped_unauthenticated, dropped_unknown_epoch,
 # dropped_forged) and goes no further, not even to a relay; after the cache, the replay window
-# (replay.py) drops a frame already accepted or too old (dropped_replay). A frame that opens under
-# a newer epoch of its source emits PeerRestarted. We seal under our endpoint's epoch and re-seal
-# relays with TTL - 1 under the source's. The caller draws relay_delay_s (Bluetooth Mesh relays wait
-# a random 0..~20 ms so that neighbours do not all transmit at once); the node draws nothing.
+# (replay.py) drops a frame already accepted or too old (dropped_replay), a segment frame by its own
+# (seq, SegO, round) identity, so a replayed segment refreshes no liveness, opens no reassembly and
+# is not relayed; a transfer whose reassembly completed or expired here opens none again. A frame
+# that opens under a newer epoch of its source emits PeerRestarted (its old reassemblies are
+# dropped). We seal under our endpoint's epoch and re-seal relays with TTL - 1 under the source's.
+# The caller draws relay_delay_s (Bluetooth Mesh relays wait a random 0..~20 ms so that neighbours
+# do not all transmit at once); the node draws nothing.
 
 from __future__ import annotations
 
@@ -77,7 +80,7 @@ from .neighbours import NeighbourInfo, NeighbourTable
 from .outbox import Outbox
 from .reader import FrameReader
 from .reassembly import SarReceiver
-from .replay import ReplayVerdict, ReplayWindow
+from .replay import ReplayVerdict, ReplayWindow, SegmentState
 from .sar import SarSender
 from .segments import read_segment_header
 from .stats import MeshStats
@@ -89,6 +92,7 @@ _SUPERSEDED_TYPES = frozenset({MessageType.POSE_UPDATE})
 _MAX_TX_EPOCHS = 64
 _HEARTBEAT_BYTES = 17  # 6 header + active_command + init_ttl + epoch (4) + capabilities + 4 CRC
 _HEARTBEAT_INIT_TTL_BYTE = 7
+_SEGMENT_DATA_AT = 9  # header 6 + SegO|SegN 3
 
 
 @dataclass(frozen=True, slots=True)
@@ -144,7 +148,9 @@ class MeshNode:
             self.config, self.stats, self._neighbours.hops_to, self._queue_segment, self._events.append
         )
         self._receiver = SarReceiver(
-            self.config, self.stats, self._send_ack, self._deliver, self._neighbours.init_ttl_of
+            self.config, self.stats, self._send_ack, self._deliver, self._neighbours.init_ttl_of,
+            self._replay.may_open if self._replay is not None else None,
+            self._reassembly_closed if self._replay is not None else None,
         )
         # what a frame for us becomes, by kind
         self._local = {
@@ -215,12 +221,18 @@ class MeshNode:
                 stats.relay_copies_suppressed += cancelled
             return False
         if self._replay is not None:
-            send = None if view.kind is FrameKind.SEGMENT else data[1] >> 6
-            verdict = self._replay.accept(view.src, self._rx_epoch, view.seq, send)
+            if view.kind is FrameKind.SEGMENT:
+                seg_o, seg_n = read_segment_header(data)
+                variant = data[_SEGMENT_DATA_AT:-4] if seg_o == seg_n else b""
+                verdict = self._replay.accept_segment(view.src, self._rx_epoch, view.seq, seg_o,
+                                                      data[1] >> ATTEMPT_SHIFT, variant)
+            else:
+                verdict = self._replay.accept(view.src, self._rx_epoch, view.seq, data[1] >> ATTEMPT_SHIFT)
             if not verdict.accepted:
                 stats.dropped_replay += 1
                 return False
             if verdict is ReplayVerdict.NEW_EPOCH:
+                self._receiver.forget_source(view.src)
                 self._events.append(PeerRestarted(view.src, self._rx_epoch, now))
         stats.accepted += 1
         hops, found = self._neighbours.heard(view.src, view.ttl, now, rssi_dbm, _announced_init_ttl(data, view))
@@ -345,6 +357,9 @@ class MeshNode:
         self._push(now, Transmission(self._seal(data, epoch), self.address, dst, MessageType.SEGMENT_ACK, seq,
                                      ttl, False, None, None))
         self.stats.acks_sent += 1
+
+    def _reassembly_closed(self, src: int, seq: int, complete: bool) -> None:
+        self._replay.mark(src, seq, SegmentState.COMPLETE if complete else SegmentState.EXPIRED)
 
     def _own_number(self) -> tuple[int, int]:
         """(seq, epoch) for a SegmentAck when no endpoint lends its counter (a bare node in tests)."""

@@ -20,6 +20,10 @@ from .stats import MeshStats
 AckSink = Callable[[int, int, int, int, float], None]
 #: (frame, src, hops, rssi_dbm, now) -> None: hand a logical frame upward.
 FrameSink = Callable[[bytes, int, int, "float | None", float], None]
+#: (src, seq) -> whether a reassembly may open for it (the replay window: not once finished).
+OpenCheck = Callable[[int, int], bool]
+#: (src, seq, complete) -> None: a reassembly ended, delivered (True) or timed out or corrupt (False).
+CloseSink = Callable[[int, int, bool], None]
 
 
 @dataclass(slots=True)
@@ -61,8 +65,12 @@ class SarReceiver:
         send_ack: AckSink,
         deliver: FrameSink,
         init_ttl_of: Callable[[int], int | None],
+        may_open: OpenCheck | None = None,
+        on_closed: CloseSink | None = None,
     ) -> None:
         self._config = config
+        self._may_open = may_open
+        self._on_closed = on_closed
         self._stats = stats
         self._send_ack = send_ack
         self._deliver = deliver
@@ -134,10 +142,19 @@ class SarReceiver:
             if now >= entry.last_new_s + incomplete_s:
                 self._close(key)
                 self._stats.reassemblies_expired += 1
+                if self._on_closed is not None:
+                    self._on_closed(key[0], key[1], False)
             elif entry.ack_due_s is not None and entry.ack_due_s <= now:
                 self._ack(key, entry, now)
         while self._completed and next(iter(self._completed.values())).expires_s <= now:
             self._completed.popitem(last=False)
+
+    def forget_source(self, src: int) -> None:
+        """`src` restarted (a new epoch): its reassemblies and completed frames belong to its old run."""
+        for key in [k for k in self._active if k[0] == src]:
+            self._close(key)
+        for key in [k for k in self._completed if k[0] == src]:
+            del self._completed[key]
 
     # internals
 
@@ -146,7 +163,8 @@ class SarReceiver:
         hops: int, rssi_dbm: float | None, now: float,
     ) -> Reassembly | None:
         src = key[0]
-        if (len(self._active) >= self._config.max_reassemblies
+        if (self._may_open is not None and not self._may_open(src, key[1])
+                or len(self._active) >= self._config.max_reassemblies
                 or self._per_source.get(src, 0) >= self._config.max_reassemblies_per_source):
             self._stats.reassemblies_rejected += 1
             return None
@@ -181,6 +199,8 @@ class SarReceiver:
         frame = rebuild_frame(entry.first, body, self._init_ttl(key[0]), entry.max_ttl)
         if frame is None:
             self._stats.reassemblies_corrupt += 1
+            if self._on_closed is not None:
+                self._on_closed(key[0], key[1], False)
             return
         self._stats.reassemblies_complete += 1
         self._completed[key] = Completed(
@@ -189,6 +209,8 @@ class SarReceiver:
         self._completed.move_to_end(key)
         while len(self._completed) > self._config.completed_memory:
             self._completed.popitem(last=False)
+        if self._on_closed is not None:
+            self._on_closed(key[0], key[1], True)
         self._send_ack(key[0], key[1], entry.seg_n + 1, 0, now)
         self._deliver(frame, key[0], entry.hops, entry.rssi_dbm, now)
 

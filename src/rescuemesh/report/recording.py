@@ -24,6 +24,7 @@ from foxglove.messages import (Color, CubePrimitive, CylinderPrimitive, FrameTra
 from matplotlib.colors import to_rgb
 
 from rescuemesh.protocol import BROADCAST, MessageType
+from rescuemesh.report.live_origin import OriginGuard, origins_from_env
 from rescuemesh.report.plots import robot_colours
 from rescuemesh.robot import robot_name
 
@@ -108,7 +109,9 @@ class RunRecorder:
     header timestamp, in ns from the start of the run."""
 
     def __init__(self, rt, map_model, path: Path | None, *, live_port: int | None = None,
-                 rosbag: Path | None = None) -> None:
+                 rosbag: Path | None = None, allowed_origins: tuple[str, ...] | None = None) -> None:
+        """`allowed_origins`: web origins besides the local ones that may watch --live (default: from
+        $RESCUEMESH_LIVE_ORIGINS; report/live_origin.py)."""
         self.rt = rt
         self.path = path
         self.rosbag = None  # with `rosbag`, the run also goes to a rosbag2 folder (report/rosbag.py)
@@ -117,17 +120,24 @@ class RunRecorder:
 
             self.rosbag = RosbagRecorder(rt, rosbag)
         self._context = foxglove.Context()
-        self._writer = self._server = None
+        self._writer = self._server = self._guard = None
         if path is not None:
             path.parent.mkdir(parents=True, exist_ok=True)
             self._writer = foxglove.open_mcap(path, allow_overwrite=True, context=self._context)
         self._resend: set[str] = set()
         self._lock = threading.Lock()
         if live_port is not None:
+            # the SDK's server on a private port, behind a front that checks each client's Origin
+            # (a web page in the operator's browser must not read the run: live_origin.py)
             try:
-                self._server = foxglove.start_server(name="rescuemesh", host="127.0.0.1", port=live_port,
+                self._guard = OriginGuard("127.0.0.1", live_port, 0, allowed_origins
+                                          if allowed_origins is not None else origins_from_env())
+                self._server = foxglove.start_server(name="rescuemesh", host="127.0.0.1", port=0,
                                                      context=self._context, server_listener=_Subscriptions(self))
+                self._guard.backend_port = self._server.port
             except Exception as error:  # the SDK raises its own RuntimeError subclasses
+                if self._guard is not None:
+                    self._guard.close()
                 self._close_writer()
                 raise LiveServerError(f"cannot serve --live on 127.0.0.1:{live_port}: {error}") from None
         ctx = self._context
@@ -223,6 +233,9 @@ class RunRecorder:
         """Close the file and stop the server, publishing nothing more."""
         if self.rosbag is not None:
             self.rosbag.close()
+        if self._guard is not None:
+            self._guard.close()
+            self._guard = None
         if self._server is not None:
             self._server.stop()
             self._server = None
@@ -238,7 +251,7 @@ class RunRecorder:
     @property
     def live_url(self) -> str | None:
         """ws://127.0.0.1:PORT while the live server runs, else None."""
-        return f"ws://127.0.0.1:{self._server.port}" if self._server is not None else None
+        return f"ws://127.0.0.1:{self._guard.port}" if self._guard is not None else None
 
     # --- publishing --------------------------------------------------------------------------
 
@@ -274,15 +287,15 @@ class RunRecorder:
 
     def _publish_logs(self) -> None:
         for name in self.names:
-            log = self.rt.brains[name].log  # the one read of this brain this period
-            for event in log[self._log_done[name]:]:
+            log = self.rt.brains[name].log  # the one read of this brain this period (a ring: brain.BrainLog)
+            for event in log.since(self._log_done[name]):
                 level = LogLevel.Warning if event.kind in WARNING_KINDS else LogLevel.Info
                 text = f"{event.kind}: {event.detail}" if event.detail else event.kind
                 self._emit(self._log, "/log", Log(timestamp=_stamp(event.time_s), level=level, message=text,
                                                   name=event.robot), event.time_s)
                 if event.kind in ("behaviour_started", "behaviour_ended"):
                     self._emit(self._behaviours, "/behaviours", _behaviour(event), event.time_s)
-            self._log_done[name] = len(log)
+            self._log_done[name] = log.total
 
     def _keep(self, name: str, x: float, y: float, z: float, yaw: float) -> None:
         last = self._last_kept.get(name)

@@ -17,6 +17,7 @@ window opens; heard again within it, the command resumes; if not, both sides end
 
 from __future__ import annotations
 
+import logging
 from collections import deque
 
 from rescuemesh.body import Body, RobotKind
@@ -36,6 +37,7 @@ from rescuemesh.protocol import (
     Data,
     DataReceived,
     DeliveryFailed,
+    EncodeError,
     Follow,
     ForwardMsg,
     FrameRejected,
@@ -66,16 +68,20 @@ from rescuemesh.robot.records import (
     STREAMED,
     BrainConfig,
     BrainEvent,
+    BrainLog,
     FinishedBehaviour,
     LinkLossPolicy,
     OutgoingCommand,
     PoseStream,
     Running,
+    fits_wire,
     from_wire_pose,
     heartbeat_phase_s,
     to_wire_pose,
 )
 from rescuemesh.robot.sensing import SensorCommands
+
+_LOG = logging.getLogger(__name__)
 
 
 class RobotBrain(SensorCommands):
@@ -93,7 +99,10 @@ class RobotBrain(SensorCommands):
         self.nav = nav
         self.costmap = costmap
         self.config = config or BrainConfig()
-        self.log: list[BrainEvent] = []
+        #: The robot's log: a ring (records.LOG_CAPACITY entries) with a count of what it dropped.
+        self.log = BrainLog()
+        #: Why the robot is halted for its own pose (outside the wire's range or not finite), or None.
+        self.pose_fault: str | None = None
         self.outgoing: dict[int, OutgoingCommand] = {}
         self.streams: dict[int, PoseStream] = {}
         self.running: Running | None = None
@@ -170,9 +179,60 @@ class RobotBrain(SensorCommands):
 
     # ----- the loop -----
 
+    def heartbeat_now(self) -> None:
+        """Send a Heartbeat at the next step, then keep the usual period: a runtime that learns of a
+        new peer (a Zenoh session connecting) lets it hear our epoch and know us at once."""
+        self._next_heartbeat_s = 0.0
+
     def step(self, now: float) -> None:
         """Handle what the endpoint and the network reported, keep links and jobs, stream poses,
-        heartbeat, and drive the body."""
+        heartbeat, and drive the body. A pose the wire cannot carry (|x| or |y| beyond 327.67 m, or
+        not finite: a drifting odometry, a bad driver) is reported once, never sent, and halts the
+        robot (`pose_fault`) until the pose is good again; it never raises out of here."""
+        pose = self.body.pose()
+        if not fits_wire(pose):
+            return self._halt_for_pose(now, f"pose ({pose.x:.2f}, {pose.y:.2f}, {pose.yaw:.2f}) is outside the "
+                                            "wire's range (|x|, |y| <= 327.67 m, finite)")
+        if self.pose_fault is not None:
+            self.pose_fault = None
+            self._note(now, "pose_fault_cleared", f"pose ({pose.x:.2f}, {pose.y:.2f}) fits the wire again")
+        try:
+            self._step(now)
+        except EncodeError as exc:  # the pose moved out of range during the step
+            self._halt_for_pose(now, str(exc))
+
+    def _halt_for_pose(self, now: float, why: str) -> None:
+        """Halted for our own pose: events handled (commands are answered, then failed), pose streams
+        ended, nothing that carries the pose sent, Heartbeats go on, the body stands still."""
+        if self.pose_fault is None:
+            self.pose_fault = why
+            self._note(now, "pose_fault", f"{why}: halted, the pose is not sent")
+            _LOG.warning("%s: %s: halted, the pose is not sent", self.name, why)
+        self.streams.clear()
+        try:
+            while (event := self.endpoint.next_event()) is not None:
+                self._on_protocol[type(event)](event, now)
+            while (event := self.network.next_event()) is not None:
+                self._on_network[type(event)](event, now)
+        except EncodeError:
+            pass  # a handler that needed our pose: nothing sent
+        self._end_running(now, ResultCode.FAILED, Reason.STUCK, "own pose outside the wire's range")
+        self._end_running(now, ResultCode.FAILED, Reason.STUCK, "own pose outside the wire's range", sensing=True)
+        self._heartbeat(now)
+        self.body.set_velocity(0.0, 0.0)
+
+    def _heartbeat(self, now: float) -> None:
+        if now >= self._next_heartbeat_s:
+            active = self.running.msg_type if self.running and self.running.msg_type else 0
+            self.endpoint.send_heartbeat(now, active_command=int(active), capabilities=int(self.capabilities))
+            period = self.config.heartbeat_period_s
+            if self._heartbeat_phase_s is not None:  # after the first: on this robot's phase
+                self._next_heartbeat_s = now + (self._heartbeat_phase_s - now) % period or period
+                self._heartbeat_phase_s = None
+            else:
+                self._next_heartbeat_s = now + period
+
+    def _step(self, now: float) -> None:
         while (event := self.endpoint.next_event()) is not None:
             self._on_protocol[type(event)](event, now)
         while (event := self.network.next_event()) is not None:
@@ -183,15 +243,7 @@ class RobotBrain(SensorCommands):
             self._deliver_held_reports(now)
         self._forward(now)
         self._stream_poses(now)
-        if now >= self._next_heartbeat_s:
-            active = self.running.msg_type if self.running and self.running.msg_type else 0
-            self.endpoint.send_heartbeat(now, active_command=int(active), capabilities=int(self.capabilities))
-            period = self.config.heartbeat_period_s
-            if self._heartbeat_phase_s is not None:  # after the first: on this robot's phase
-                self._next_heartbeat_s = now + (self._heartbeat_phase_s - now) % period or period
-                self._heartbeat_phase_s = None
-            else:
-                self._next_heartbeat_s = now + period
+        self._heartbeat(now)
         velocity = (0.0, 0.0)
         if self.running is not None:
             behaviour = self.running.behaviour

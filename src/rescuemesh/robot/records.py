@@ -13,7 +13,8 @@ import math
 from dataclasses import dataclass, field
 
 from rescuemesh.geometry import Pose2D
-from rescuemesh.protocol import MessageType, Pose, Reason, ResultCode
+from rescuemesh.protocol import EncodeError, MessageType, Pose, Reason, ResultCode
+from rescuemesh.protocol.wire import position_to_units
 from rescuemesh.robot.behaviours import Behaviour
 from rescuemesh.robot.policy import MOTION_LEVEL, Priority, Rank, Resource
 
@@ -169,3 +170,47 @@ def to_wire_pose(pose: Pose2D) -> Pose:
 
 def from_wire_pose(pose: Pose) -> Pose2D:
     return Pose2D(pose.x, pose.y, pose.yaw)
+
+
+#: Entries a robot's log keeps (about 2 MB): a peer with the key that sends commands without end
+#: cannot grow it further; a long simulated run stays far below it.
+LOG_CAPACITY = 50_000
+
+
+class BrainLog(list):
+    """A robot's log: a list of BrainEvents that keeps the latest `capacity` (it lets the oldest go in
+    chunks of an eighth, so it holds at most capacity * 9 / 8 and an append costs O(1) on average).
+    `total` counts every entry ever appended, `dropped` those let go; `since(n)` gives the entries
+    from the n-th appended on that are still held, so a reader that remembers `total` never reads
+    one twice. A list, so that it is plain data wherever a brain's state is copied."""
+
+    def __init__(self, capacity: int = LOG_CAPACITY) -> None:
+        if not (isinstance(capacity, int) and capacity >= 1):
+            raise ValueError(f"capacity must be an int >= 1, got {capacity!r}")
+        super().__init__()
+        self.capacity = capacity
+        self.total = 0
+
+    @property
+    def dropped(self) -> int:
+        return self.total - len(self)
+
+    def append(self, event: BrainEvent) -> None:
+        super().append(event)
+        self.total += 1
+        if len(self) > self.capacity + self.capacity // 8:
+            del self[: len(self) - self.capacity]
+
+    def since(self, index: int) -> list[BrainEvent]:
+        return self[max(0, index - self.dropped):]
+
+
+def fits_wire(pose: Pose2D) -> bool:
+    """Whether `pose` can travel in a protocol message: x and y finite and within -327.68..327.67 m
+    after rounding to cm (docs/protocol.md), yaw finite."""
+    try:
+        position_to_units(pose.x)
+        position_to_units(pose.y)
+    except EncodeError:
+        return False
+    return math.isfinite(pose.yaw)

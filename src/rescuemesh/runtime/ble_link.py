@@ -94,13 +94,20 @@ class BleLink:
             return True
         return False
 
-    def drain(self) -> list[bytes]:
-        """The frames heard since the last drain, oldest first."""
+    def drain(self, limit: int | None = None) -> list[bytes]:
+        """The frames heard since the last drain, oldest first (at most MAX_QUEUE were kept). `limit` is
+        the caller's share per wake-up: all are returned, and the real-time loop keeps `limit` of them
+        at random, so that a flood does not push genuine frames out from the tail."""
         with self._lock:
             frames = list(self._heard)
             self._heard.clear()
             self._event.clear()
         return frames
+
+    def new_peers(self) -> bool:
+        """Whether another robot's link appeared since the last call: an advertising bearer has no
+        presence to watch, so never (robots learn each other's epoch from the periodic Heartbeat)."""
+        return False
 
     def close(self, timeout_s: float = CLOSE_TIMEOUT_S) -> bool:
         """Stop the bearer and its thread; whether that finished within `timeout_s` s."""

@@ -15,13 +15,14 @@ import queue
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Sequence
 
 from rescuemesh.geometry import Pose2D
 from rescuemesh.robot import robot_address
 from rescuemesh.runtime.config import SimConfig
-from rescuemesh.runtime.linked_robot import ZENOH_ACK_TIMEOUT_S, build_robot
+from rescuemesh.runtime.linked_robot import ZENOH_ACK_TIMEOUT_S, build_robot, team_link_secret
 from rescuemesh.runtime.realtime import RealtimeLoop, monotonic_from_zero
 from rescuemesh.transport.zenoh_link import KEY_PREFIX, ZenohLink, session_config
 
@@ -62,14 +63,16 @@ def _protocol_rtt(samples: int, team: str, deadline: float, secure: bool, python
             "--listen", f"tcp/127.0.0.1:{port_2}", "--duration", f"{max(1.0, deadline - time.monotonic()):.1f}"]
     if not secure:
         args.append("--insecure")
-    with _Helper(args) as helper:
+    state = tempfile.TemporaryDirectory(prefix="rescuemesh-bench-state-")  # robot_2's boot counter, not ~'s
+    args += ["--state-dir", state.name]
+    with state, _Helper(args) as helper:
         if not helper.listening(port_2, min(deadline, time.monotonic() + START_TIMEOUT_S)):
             return _figures([], samples, failure=f"robot_2 did not start: {helper.output()}")
         clock = monotonic_from_zero()
         config = SimConfig(secure=secure, ack_timeout_s=ZENOH_ACK_TIMEOUT_S)
         _, brain, stack = build_robot("robot_1", Pose2D(0.0, 0.0), config, clock)
         link = ZenohLink.open(team, robot_address("robot_1"), listen=[f"tcp/127.0.0.1:{port_1}"],
-                              connect=[f"tcp/127.0.0.1:{port_2}"])
+                              connect=[f"tcp/127.0.0.1:{port_2}"], secret=team_link_secret(config))
         peer, rtts, state = robot_address("robot_2"), [], {"seq": None, "sent": 0.0, "lost": 0, "asked": 0}
 
         def on_step(loop: RealtimeLoop, now: float) -> None:

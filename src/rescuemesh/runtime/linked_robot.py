@@ -1,8 +1,9 @@
 """One robot process on a real network: a KinematicBody, the robot's software, a ZenohLink, in real time.
 `python -m rescuemesh.runtime.linked_robot --name robot_2 --listen tcp/IP:PORT --connect tcp/IP:PORT`.
 
-Owns: the process's arguments, a small mission (command a peer to Follow, drive to a goal), its
-JSON report. Must not know: MuJoCo, the simulated radio, what is inside a frame.
+Owns: the process's arguments, its boot counter (runtime/boot_counter.py: the epoch, on disk before
+the first frame), a small mission (command a peer to Follow, drive to a goal), its JSON report.
+Must not know: MuJoCo, the simulated radio, what is inside a frame.
 """
 
 from __future__ import annotations
@@ -21,13 +22,14 @@ from typing import NoReturn, TextIO
 
 from rescuemesh.geometry import Pose2D
 from rescuemesh.maps.grid import OccupancyGrid
-from rescuemesh.protocol import ResultCode
+from rescuemesh.protocol import EncodeError, ResultCode
 from rescuemesh.robot import RobotBrain, robot_address, robot_name
 from rescuemesh.runtime.assembly import assemble_robot, team_sealer
+from rescuemesh.runtime.boot_counter import BootCounter, BootCounterError, default_state_dir
 from rescuemesh.runtime.config import SimConfig
 from rescuemesh.runtime.kinematic_body import KinematicBody, empty_grid
 from rescuemesh.runtime.realtime import RealtimeLoop, monotonic_from_zero
-from rescuemesh.transport.zenoh_link import ZenohLink, check_endpoint, check_team
+from rescuemesh.transport.zenoh_link import ZenohLink, check_endpoint, check_team, link_secret
 
 #: The leader asks this many times (each one retried by the protocol) before giving the Follow up.
 FOLLOW_ATTEMPTS = 5
@@ -73,7 +75,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0,
                    help="team key derived from this seed when no --key (simulation only)")
     p.add_argument("--key", default=None, metavar="FILE", help="team key file (rescuemesh keys new FILE)")
-    p.add_argument("--insecure", action="store_true", help="CRC frames: no authentication (both ends must agree)")
+    p.add_argument("--insecure", action="store_true",
+                   help="CRC frames and an open Zenoh link: no authentication (both ends must agree)")
+    p.add_argument("--state-dir", default=None, metavar="DIR",
+                   help="where the robot keeps its boot counter, DIR/TEAM/ROBOT.epoch (default "
+                        "$XDG_STATE_HOME/rescuemesh, else ~/.local/state/rescuemesh)")
     p.add_argument("--no-relay", action="store_true", help="this robot relays no one's frames (mesh relay off)")
     p.add_argument("--start", default="0,0,0", metavar="X,Y[,YAW]", help="start pose in m and rad")
     p.add_argument("--map", default=None, metavar="FILE",
@@ -123,7 +129,8 @@ def build_ros1_robot(options: dict):
     name = options["name"]
     init_node(f"rescuemesh_{name}")
     body = Ros1Body(name, odometry_wait_s=options["odometry_wait"], **ros1_body_kwargs(options["ros"]))
-    brain, stack = _software(name, body, options["config"], _grid(options["grid"]), body.pose())
+    brain, stack = _software(name, body, options["config"], _grid(options["grid"]), body.pose(),
+                             options.get("epoch", 0))
     return body, brain, stack, Ros1Paper(brain)
 
 
@@ -139,7 +146,7 @@ def build_ros2_robot(options: dict):
     ros = Ros2Node(name, namespace=options["ros"]["namespace"], ros_args=options["ros_args"])
     try:
         body = Ros2Body(ros, name, odometry_wait_s=options["odometry_wait"], **ros2_body_kwargs(options["ros"]))
-        brain, stack = _software(name, body, options["config"], grid, body.pose())
+        brain, stack = _software(name, body, options["config"], grid, body.pose(), options.get("epoch", 0))
         paper = Ros2Paper(brain, ros, on_map=lambda x, y: not grid.is_occupied(x, y))
     except BaseException:
         ros.close()
@@ -148,11 +155,12 @@ def build_ros2_robot(options: dict):
 
 
 def build_robot(name: str, start: Pose2D, config: SimConfig, clock: Callable[[], float],
-                grid: OccupancyGrid | None = None):
-    """Robot `name`'s body, brain and network stack, without a link: (body, brain, stack)."""
+                grid: OccupancyGrid | None = None, epoch: int = 0):
+    """Robot `name`'s body, brain and network stack, without a link: (body, brain, stack). `epoch`:
+    its boot counter (a process keeps it on disk, BootCounter)."""
     grid = _grid(grid)
     body = KinematicBody(name, start, clock, grid=grid)
-    brain, stack = _software(name, body, config, grid, start)
+    brain, stack = _software(name, body, config, grid, start, epoch)
     return body, brain, stack
 
 
@@ -161,11 +169,44 @@ def _grid(grid: OccupancyGrid | None) -> OccupancyGrid:
     return grid if grid is not None else empty_grid(size_m=EMPTY_MAP_SIZE_M)
 
 
-def _software(name: str, body, config: SimConfig, grid: OccupancyGrid, start: Pose2D):
+def _software(name: str, body, config: SimConfig, grid: OccupancyGrid, start: Pose2D, epoch: int = 0):
     """The robot's brain and network stack on `body` (runtime/assembly.py): (brain, stack)."""
     from rescuemesh.nav import Costmap
 
-    return assemble_robot(name, body, Costmap(grid), config, team_sealer(config), start)
+    return assemble_robot(name, body, Costmap(grid), config, team_sealer(config), start, epoch=epoch)
+
+
+def team_link_secret(config: SimConfig) -> bytes | None:
+    """The Zenoh link's password for the team's key (None with --insecure: an open link)."""
+    if not config.secure:
+        return None
+    from rescuemesh.mesh.keys import team_key_from_seed
+
+    return link_secret(config.team_key if config.team_key is not None else team_key_from_seed(config.seed))
+
+
+class EpochGuardLink:
+    """A link that records the endpoint's epoch on disk before a frame sealed under a new one leaves
+    (the endpoint opens a new epoch at every wrap of its 16-bit seq). A BootCounterError stops the
+    run: a frame under an epoch not on disk could repeat a nonce after a restart."""
+
+    def __init__(self, link, endpoint, counter: BootCounter) -> None:
+        self.link, self.endpoint, self.counter = link, endpoint, counter
+
+    def send(self, frame: bytes) -> None:
+        if self.endpoint.epoch != self.counter.epoch:
+            self.counter.advance(self.endpoint.epoch)
+        self.link.send(frame)
+
+    def send_all(self, frames) -> None:
+        for frame in frames:
+            self.send(frame)
+
+    def wait(self, timeout_s: float | None) -> bool:
+        return self.link.wait(timeout_s)
+
+    def drain(self, limit: int | None = None) -> list[bytes]:
+        return self.link.drain(limit)
 
 
 class Mission:
@@ -227,8 +268,13 @@ class Mission:
         pending = any(not c.failed and c.result is None for c in brain.outgoing.values() if c.peer == self.follower)
         if pending or not loop.stack.is_reachable(self.follower, now):
             return
+        if brain.pose_fault is not None:
+            return  # our pose cannot be sent: ask once it can
         if len(self.follow_seqs) < FOLLOW_ATTEMPTS:
-            self.follow_seqs.append(brain.command_follow(self.follower, now))
+            try:
+                self.follow_seqs.append(brain.command_follow(self.follower, now))
+            except EncodeError:  # the pose left the wire's range since the step: the next step reports it
+                return
         else:
             self._finish(now)  # given up
 
@@ -291,6 +337,21 @@ def main(argv: Sequence[str] | None = None, *, out: TextIO | None = None, err: T
         return 2
     import zenoh
 
+    counter = BootCounter(options["state_dir"], options["team"], options["name"])
+    try:
+        options["epoch"] = counter.boot()  # on disk before anything is sealed under it
+    except BootCounterError as exc:
+        counter.close()
+        print(f"rescuemesh robot: error: {exc}", file=err)
+        return 2
+    try:
+        return _run(options, counter, out, err, zenoh)
+    finally:
+        counter.close()
+
+
+def _run(options: dict, counter: BootCounter, out: TextIO, err: TextIO, zenoh) -> int:
+    print(f"{options['name']}: epoch {options['epoch']} ({counter.path})", file=out, flush=True)
     paper = None
     if options["body"] in ("ros1", "ros2"):
         try:
@@ -308,7 +369,8 @@ def main(argv: Sequence[str] | None = None, *, out: TextIO | None = None, err: T
         clock = body.now
     else:
         clock = monotonic_from_zero()
-        body, brain, stack = build_robot(options["name"], options["start"], options["config"], clock, options["grid"])
+        body, brain, stack = build_robot(options["name"], options["start"], options["config"], clock, options["grid"],
+                                         options["epoch"])
     try:
         if options["link"] == "ble":
             from rescuemesh.runtime.ble_link import BleLink
@@ -316,7 +378,8 @@ def main(argv: Sequence[str] | None = None, *, out: TextIO | None = None, err: T
             link = BleLink.open(options["hci"], name=options["name"])
         else:
             link = ZenohLink.open(options["team"], robot_address(options["name"]),
-                                  listen=options["listen"], connect=options["connect"])
+                                  listen=options["listen"], connect=options["connect"],
+                                  secret=team_link_secret(options["config"]))
     except (zenoh.ZError, ValueError) as exc:
         print(f"rescuemesh robot: error: cannot open the Zenoh session: {str(exc).splitlines()[0]}", file=err)
         return 2
@@ -329,19 +392,29 @@ def main(argv: Sequence[str] | None = None, *, out: TextIO | None = None, err: T
     trajectory: list[list[float]] = []
 
     def on_step(loop: RealtimeLoop, now: float) -> None:
+        if link.new_peers():  # a robot's link came: it hears our epoch now, not at our next Heartbeat
+            brain.heartbeat_now()
         if paper is not None:
             paper.step(now)  # requests from ROS nodes, on this thread (the brain is not thread-safe)
         if mission is not None:
+            accepted = mission.accepted_s
             mission.on_step(loop, now)
+            if accepted is None and mission.accepted_s is not None:
+                print(f"{options['name']}: {robot_name(mission.follower)} accepted the Follow after "
+                      f"{mission.accepted_s:.2f} s", file=out, flush=True)
         if not trajectory or now - trajectory[-1][0] >= TRAJECTORY_PERIOD_S:
             pose = body.pose()
             trajectory.append([round(now, 3), round(pose.x, 3), round(pose.y, 3), round(pose.yaw, 3)])
 
-    loop = RealtimeLoop(brain, stack, link, control_dt=options["config"].control_dt, clock=clock, on_step=on_step)
+    guarded = EpochGuardLink(link, stack.endpoint, counter)
+    loop = RealtimeLoop(brain, stack, guarded, control_dt=options["config"].control_dt, clock=clock, on_step=on_step)
     until = ExitWhenDone(brain, mission) if options["exit_when_done"] else None
     restore = _on_signals(loop.stop)
+    failure = None
     try:
         loop.run(options["duration"] if options["duration"] is not None else math.inf, until)
+    except BootCounterError as exc:  # the body was halted on the way out
+        failure = str(exc)
     finally:
         restore()
         closing = time.monotonic()
@@ -353,9 +426,13 @@ def main(argv: Sequence[str] | None = None, *, out: TextIO | None = None, err: T
             body.ros.close()
     report = _report(options, brain, stack, body, link, loop, mission, trajectory)
     report["link_close"] = {"clean": closed, "took_s": round(close_s, 3)}
+    report["epoch"] = {"boot": options["epoch"], "last": counter.epoch, "file": str(counter.path)}
+    if failure is not None:
+        print(f"rescuemesh robot: error: {failure}", file=err)
+        report["error"] = failure
     if options["json_out"] is not None:
         Path(options["json_out"]).write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
-    ok = mission is None or mission.ok
+    ok = (mission is None or mission.ok) and failure is None
     final = report["final_pose"]
     print(f"{options['name']}: {'ok' if ok else 'FAILED'} after {report['ran_s']:.1f} s, drove "
           f"{report['path_length_m']:.2f} m to ({final[0]:.2f}, {final[1]:.2f}); "
@@ -417,7 +494,8 @@ def _options(args: argparse.Namespace) -> dict:
             "start": start, "goal": goal, "follower": follower, "duration": args.duration, "grid": grid,
             "exit_when_done": args.exit_when_done, "json_out": args.json_out, "linger": args.linger,
             "body": args.body, "odometry_wait": args.odometry_wait, "ros": ros_body_options(args, UsageError),
-            "link": args.link, "hci": args.hci}
+            "link": args.link, "hci": args.hci,
+            "state_dir": Path(args.state_dir) if args.state_dir is not None else default_state_dir()}
 
 
 def _on_signals(stop: Callable[[], None]) -> Callable[[], None]:
@@ -455,6 +533,7 @@ def _report(options, brain, stack, body, link, loop, mission, trajectory) -> dic
         "link": link.stats.as_dict(), "loop": loop.stats.as_dict(),
         "trajectory": trajectory,
         "log": [[e.time_s, e.kind, e.detail] for e in brain.log],
+        "log_dropped": brain.log.dropped,
     }
 
 

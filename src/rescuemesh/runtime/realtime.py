@@ -25,8 +25,10 @@ import numpy as np
 #: A relaying stack re-broadcasts after a random 0..10 ms (Mesh Profile 1.0, 3.4.6.3); the sans-IO
 #: mesh layer draws no random numbers, so the loop does (as the simulated medium and ble-check do).
 RELAY_DELAY_MAX_S = 0.010
-#: Frames handed to the stack per wake-up at most; beyond it they are dropped and counted, as by a
-#: full radio buffer (a flood cannot starve the control tick).
+#: Frames handed to the stack per wake-up at most (a flood cannot starve the control tick). The link
+#: is asked for at most this many, taken fairly over its sources (ZenohLink.drain: round-robin); a link
+#: that hands more has the excess dropped at random and counted, never the tail: under a flood the
+#: tail is where a genuine frame sits.
 MAX_FRAMES_PER_WAKE = 256
 
 
@@ -35,7 +37,7 @@ class FrameLink(Protocol):
 
     def send(self, frame: bytes) -> None: ...
     def wait(self, timeout_s: float | None) -> bool: ...
-    def drain(self) -> list[bytes]: ...
+    def drain(self, limit: int | None = None) -> list[bytes]: ...
 
 
 def monotonic_from_zero() -> Callable[[], float]:
@@ -81,8 +83,9 @@ class RealtimeLoop:
         self.control_dt = float(control_dt)
         self.clock = clock if clock is not None else monotonic_from_zero()
         self.on_step = on_step
+        rng = rng if rng is not None else np.random.default_rng()
+        self._rng = rng
         if relay_delay is None:
-            rng = rng if rng is not None else np.random.default_rng()
             relay_delay = lambda: float(rng.uniform(0.0, RELAY_DELAY_MAX_S))  # noqa: E731
         self._relay_delay = relay_delay
         self.stats = LoopStats()
@@ -161,10 +164,11 @@ class RealtimeLoop:
         self._flush(now)
 
     def _receive(self, now: float) -> None:
-        frames = self.link.drain()
-        if len(frames) > MAX_FRAMES_PER_WAKE:
+        frames = self.link.drain(MAX_FRAMES_PER_WAKE)
+        if len(frames) > MAX_FRAMES_PER_WAKE:  # this used to keep the first 256 and drop the rest
             self.stats.frames_dropped += len(frames) - MAX_FRAMES_PER_WAKE
-            frames = frames[:MAX_FRAMES_PER_WAKE]
+            keep = np.sort(self._rng.choice(len(frames), MAX_FRAMES_PER_WAKE, replace=False))
+            frames = [frames[i] for i in keep]
         self.stats.frames_in += len(frames)
         receive, delay = self.stack.receive, self._relay_delay
         for frame in frames:

@@ -89,13 +89,36 @@ def pose_msg_to_pose2d(pose) -> Pose2D:
     return Pose2D(float(pose.position.x), float(pose.position.y), quaternion_msg_to_yaw(pose.orientation))
 
 
-def laser_scan_from_msg(msg, origin: Pose2D, stamp: float) -> LaserScan:
-    """A sensor_msgs/LaserScan as rescuemesh.body.LaserScan taken from `origin` at `stamp` s.
+def odometry_from_msg(msg) -> tuple[Pose2D, float, float] | None:
+    """(pose, v, w) of a nav_msgs/Odometry, or None when any of them is not finite (a driver's NaN
+    must not reach the brain: it would be planned on, and sent)."""
+    if not _finite_pose_msg(msg.pose.pose):
+        return None
+    v, w = float(msg.twist.twist.linear.x), float(msg.twist.twist.angular.z)
+    if not (math.isfinite(v) and math.isfinite(w)):
+        return None
+    return pose_msg_to_pose2d(msg.pose.pose), v, w
+
+
+def _finite_pose_msg(pose) -> bool:
+    """Whether a geometry_msgs/Pose's position and orientation are all finite."""
+    p, q = pose.position, pose.orientation
+    return all(math.isfinite(float(v)) for v in (p.x, p.y, p.z, q.x, q.y, q.z, q.w))
+
+
+def laser_scan_from_msg(msg, origin: Pose2D, stamp: float) -> LaserScan | None:
+    """A sensor_msgs/LaserScan as rescuemesh.body.LaserScan taken from `origin` at `stamp` s, or None
+    for a scan whose geometry (angle_min, angle_increment, range_min, range_max) or origin is not
+    finite, or whose range_min > range_max.
 
     REP-117: a beam with no return is +inf or beyond range_max, one too close is -inf or below
     range_min; NaN is a bad reading. Everything without a valid return becomes inf (the brain
     reads inf as "free to range_max"); readings below range_min stay, LaserScan.points_in_map drops them.
     """
+    geometry = (float(msg.angle_min), float(msg.angle_increment), float(msg.range_min), float(msg.range_max),
+                origin.x, origin.y, origin.yaw, stamp)
+    if not all(math.isfinite(value) for value in geometry) or geometry[2] > geometry[3]:
+        return None
     ranges = np.asarray(msg.ranges, dtype=float).copy()
     range_max = float(msg.range_max)
     ranges[np.isnan(ranges) | (ranges > range_max)] = np.inf
@@ -161,12 +184,18 @@ class Ros1Body(Body):
         return (stamp if stamp > 0.0 else self._rospy.get_time()) - self.time_origin
 
     def _on_odom(self, msg) -> None:
-        odom = (pose_msg_to_pose2d(msg.pose.pose), float(msg.twist.twist.linear.x), float(msg.twist.twist.angular.z))
+        odom = odometry_from_msg(msg)
+        if odom is None:  # refused: the last good odometry stays (and ages: odometry_age)
+            self._rospy.logwarn_throttle(5.0, f"{self.name}: odometry on {self.topics.odom} is not finite: ignored")
+            return
         with self._lock:
             self._odom, self._odom_received_s = odom, self._rospy.get_time()
         self._odometry_arrived.set()
 
     def _on_pose(self, msg) -> None:
+        if not _finite_pose_msg(msg.pose.pose):
+            self._rospy.logwarn_throttle(5.0, f"{self.name}: pose on {self.topics.pose} is not finite: ignored")
+            return
         pose = pose_msg_to_pose2d(msg.pose.pose)
         with self._lock:
             self._localised = pose
@@ -177,6 +206,10 @@ class Ros1Body(Body):
         if base is None:
             return  # no pose to place it at yet
         scan = laser_scan_from_msg(msg, compose(base, self.laser_offset), self._stamp(msg.header))
+        if scan is None:
+            self._rospy.logwarn_throttle(5.0, f"{self.name}: scan on {self.topics.scan} has a geometry that is not "
+                                              "finite: ignored")
+            return
         with self._lock:
             self._scan = scan
 
