@@ -4,7 +4,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 
-.PHONY: demo test test-ros test-ros2 bench fuzz fuzz-control clean
+.PHONY: demo test test-slow test-ros test-ros2 bench fuzz fuzz-control clean
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -16,7 +16,11 @@ demo: $(VENV)/.installed
 	$(BIN)/rescuemesh run follow --out out/follow
 
 test: $(VENV)/.installed
-	$(BIN)/python -m pytest -q -m "not ros1 and not ros2"
+	$(BIN)/python -m pytest -q -m "not ros1 and not ros2 and not slow"
+
+# Long or CPU-heavy checks, apart from `make test` (a 50,000 frames/s junk flood against a linked robot).
+test-slow: $(VENV)/.installed
+	$(BIN)/python -m pytest -q -m slow
 
 # The ROS 1 tests (tests/ros1, marker ros1) against a real roscore. rospy is not on PyPI: Debian's ROS 1
 # packages are installed (apt, as root, or with sudo; skipped when all are there), and .venv-ros is made
