@@ -288,3 +288,14 @@ def test_the_brains_log_is_a_ring_with_a_count_of_what_it_dropped():
     for i in range(10, 10_000):
         log.append(BrainEvent(float(i), "robot_1", "command_received", str(i)))
     assert len(log) <= 9 and log.total == 10_000
+
+
+def test_a_brain_log_extended_counts_and_bounds_like_appends():
+    # the process world mirrors a robot's log with extend(); list.extend used to skip the count, so a
+    # reader of since(total) (the recorder) read nothing or everything again
+    from rescuemesh.robot.records import BrainEvent, BrainLog
+
+    log = BrainLog(capacity=8)
+    log.extend(BrainEvent(float(i), "robot_1", "x") for i in range(20))
+    assert log.total == 20 and len(log) <= 9 and log.dropped == 20 - len(log)
+    assert [e.time_s for e in log.since(18)] == [18.0, 19.0]

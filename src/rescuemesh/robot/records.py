@@ -201,6 +201,11 @@ class BrainLog(list):
         if len(self) > self.capacity + self.capacity // 8:
             del self[: len(self) - self.capacity]
 
+    def extend(self, events) -> None:
+        """Append each (counted and bounded as `append` does)."""
+        for event in events:
+            self.append(event)
+
     def since(self, index: int) -> list[BrainEvent]:
         return self[max(0, index - self.dropped):]
 

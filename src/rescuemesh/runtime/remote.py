@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from collections import Counter, deque
 
+from rescuemesh.robot.records import BrainLog
 from rescuemesh.runtime import control_messages as msg
 from rescuemesh.runtime.control import ControlError
 
@@ -85,7 +86,7 @@ class RemoteBrain:
     def reset(self) -> None:
         """A new process for this robot: a new brain, with nothing done yet."""
         self._running: RunningStandIn | None = None
-        self.log: list = []
+        self.log = BrainLog()  # the robot's log as it reports it, a ring like its own
         self.finished: list = []
         self.outgoing: dict = {}
         self.received_data: deque = deque(maxlen=64)

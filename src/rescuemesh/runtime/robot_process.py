@@ -112,10 +112,9 @@ class StatusTracker:
             if self._outgoing.get(seq) != key:
                 self._outgoing[seq] = key
                 outgoing.append(command)
-        log = list(brain.log)
-        total = len(log) + getattr(brain, "log_dropped", 0)  # a bounded log counts what it dropped
-        new = log[len(log) - min(len(log), total - self._log):] if total > self._log else []
-        self._log = total
+        log = brain.log  # a ring (robot/records.py BrainLog): `total` counts what it dropped too
+        new = log.since(self._log) if log.total > self._log else []
+        self._log = log.total
         received = brain.received_data
         key = (len(received), received[-1] if received else None)
         received_data = None
