@@ -84,7 +84,7 @@ def _folder(text: str) -> Path:
 
 
 #: What each extra of pyproject.toml brings, as the modules a command imports.
-_EXTRA_MODULES = {"sim": ("mujoco", "numba", "matplotlib", "mcap", "foxglove"), "ble": ("bumble",)}
+_EXTRA_MODULES = {"sim": ("mujoco", "matplotlib", "mcap", "foxglove"), "ble": ("bumble",)}
 #: Commands and the extra they need; a robot process (`rescuemesh robot`) needs none.
 _COMMAND_EXTRA = {"run": "sim", "world": "sim", "bench": "sim", "radio-map": "sim", "ble-check": "ble"}
 

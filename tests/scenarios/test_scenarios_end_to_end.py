@@ -90,7 +90,7 @@ def test_same_seed_same_result(tmp_path):
     assert a == b
 
 
-@pytest.mark.parametrize("scenario, seed", [("stop", 3), ("move-around", 3)])
+@pytest.mark.parametrize("scenario, seed", [("stop", 0), ("move-around", 0)])
 def test_a_command_given_up_and_asked_again_is_judged_on_the_confirmed_copy(tmp_path, scenario, seed):
     # this used to judge the automatic Stop that follows a given-up command. Single hop (no relay:
     # the mesh's second path makes a give-up rare) at 30 % loss: these seeds lose all three Confirms.
