@@ -71,6 +71,7 @@ from rescuemesh.robot.records import (
     Running,
     from_wire_pose,
     heartbeat_phase_s,
+    power_on_s,
     to_wire_pose,
 )
 from rescuemesh.robot.sensing import SensorCommands
@@ -108,6 +109,8 @@ class RobotBrain(SensorCommands):
         self.received_data: deque[tuple[float, int, DataKind, int, bytes, int]] = deque(maxlen=64)
         self.forwarder = Forwarder(self.address, timeout_s=self.config.forward_timeout_s,
                                    capacity=self.config.forward_capacity)
+        #: When this robot is switched on (BrainConfig.power_on_spread_s); it does nothing before.
+        self.power_on_s = power_on_s(self.address, self.config.power_on_spread_s)
         self._next_heartbeat_s = 0.0  # the first at once (peers learn our epoch from it), then on our phase
         self._heartbeat_phase_s = heartbeat_phase_s(self.address, self.config.heartbeat_period_s)
         self._handlers = {Follow: self._on_follow, Stop: self._on_stop, MoveAround: self._on_move_around,
@@ -163,7 +166,9 @@ class RobotBrain(SensorCommands):
 
     def step(self, now: float) -> None:
         """Handle what the endpoint and the network reported, keep links and jobs, stream poses,
-        heartbeat, and drive the body."""
+        heartbeat, and drive the body. Before the robot is switched on (`power_on_s`): nothing."""
+        if now < self.power_on_s:
+            return
         while (event := self.endpoint.next_event()) is not None:
             self._on_protocol[type(event)](event, now)
         while (event := self.network.next_event()) is not None:

@@ -46,6 +46,9 @@ class BrainConfig:
     camera_range_m: float = 4.0  # ... for ShowCam
     show_timeout_s: float = 120.0  # an open-ended ShowScan/ShowCam (count 0) ends after this
     laser_fov_rad: float = math.radians(240.0)  # a ShowScan runs beside a drive if the spot is in this
+    #: The team's robots are switched on within this many s of the run's start (0: all at once): a
+    #: robot is off (it does nothing, its radio is off) until `power_on_s(address, spread)`.
+    power_on_spread_s: float = 0.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -122,6 +125,13 @@ REPORTS_PROGRESS = frozenset({MessageType.GOTO, MessageType.RETURN, MessageType.
 #: Commands that move the receiver: when one is given up, the sender sends Stop in case it runs.
 MOTION_COMMANDS = frozenset({MessageType.FOLLOW, MessageType.MOVE_AROUND, MessageType.GOTO, MessageType.RETURN,
                              MessageType.LAND_ON_TOP})
+
+
+def power_on_s(address: int, spread_s: float) -> float:
+    """When a robot is switched on, in s after the run's start: spread over `spread_s` by address
+    (golden-ratio spacing: a team's power-on times are spread, and no two close robots' coincide),
+    as an operator switching a team on by hand, or robots booting at their own pace, would give."""
+    return (address * 0.7548776662466927) % 1.0 * spread_s
 
 
 def heartbeat_phase_s(address: int, period_s: float) -> float:
