@@ -115,6 +115,15 @@ def test_relay_carries_the_follow_over_two_hops_to_a_robot_out_of_direct_reach(t
     assert n["max_hops_delivered"] >= 2 and int(n["hops_histogram"]["2"]) > 0
 
 
+def test_relay_commands_robot_3_once_robot_1_has_heard_its_heartbeat(tmp_path):
+    # this used to give all three Follows up in 2.4 s (seed 0, loss 0.2): robot_1 had not heard
+    # robot_3's Heartbeat over the two hops yet, so it could not open robot_3's Confirms
+    code, result = run(tmp_path, "relay", "--loss", "0.2", "--seed", "0")
+    assert_common(result, code)
+    first = next(e for e in result["events"] if e[2] == "command_sent")
+    assert first[0] > 0.05 and "Follow to robot_3" in first[3]
+
+
 def test_relay_without_relays_fails_because_the_command_is_given_up(tmp_path):
     code, result = run(tmp_path, "relay", "--no-relay")
     assert code == 1 and result["success"] is False
