@@ -13,8 +13,8 @@ from rescuemesh.runtime.spawn import free_endpoint
 from rescuemesh.scenarios import ScenarioOptions
 from rescuemesh.scenarios.follow import FollowScenario
 
-#: The packages the sim and ble extras bring: a base install has none of them.
-EXTRA_PACKAGES = ("mujoco", "numba", "matplotlib", "mcap", "foxglove", "bumble")
+#: The packages the sim and ble extras bring: a base install has none of them (numba is in the base).
+EXTRA_PACKAGES = ("mujoco", "matplotlib", "mcap", "foxglove", "bumble")
 HIDE = f"import sys\nfor m in {EXTRA_PACKAGES!r}: sys.modules[m] = None\n"
 
 

@@ -158,13 +158,23 @@ def _team_figures(seed: int) -> dict:
     for count in TEAM_SIZES:
         result = run_scenario("convoy", ScenarioOptions(seed=seed, robots=count)).result
         per_robot_ms = 1000.0 * result["wall_time_s"] / max(result["sim_time_s"], 1e-9) / count
+        parts = result["runtime"].get("wall_s_by_part", {})
+        world_s = parts.get("world", 0.0)
         teams[str(count)] = {"real_time_factor": result["real_time_factor"], "sim_time_s": result["sim_time_s"],
                              "wall_time_s": result["wall_time_s"], "success": result["success"],
-                             "wall_ms_per_sim_s_per_robot": round(per_robot_ms, 2)}
+                             "wall_ms_per_sim_s_per_robot": round(per_robot_ms, 2),
+                             "wall_s_by_part": parts, "world_wall_s": world_s,
+                             "everything_else_wall_s": round(result["wall_time_s"] - world_s, 3)}
         goal = f" (goal >= {CONVOY_RTF_GOAL:g}x)" if count == 30 else ""
         print(f"convoy {count:2d} robots: {result['sim_time_s']:5.1f} s simulated in {result['wall_time_s']:6.2f} s -> "
               f"{result['real_time_factor']:5.1f}x real time{goal}; {per_robot_ms:5.2f} ms wall per simulated s "
               f"per robot{'' if result['success'] else ' (the run FAILED)'}")
+        if count == TEAM_SIZES[-1] and parts:
+            other = result["wall_time_s"] - world_s
+            print(f"  world (physics, lidar) {world_s:6.2f} s beside everything else {other:6.2f} s "
+                  f"(medium {parts.get('medium', 0.0):.2f} s, robots {parts.get('robots', 0.0):.2f} s, set-up and "
+                  f"mission {other - parts.get('medium', 0.0) - parts.get('robots', 0.0):.2f} s; goal: everything "
+                  f"else <= the world)")
     teams["goal_real_time_factor_30"] = CONVOY_RTF_GOAL
     return teams
 

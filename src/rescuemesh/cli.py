@@ -85,7 +85,7 @@ def _folder(text: str) -> Path:
 
 
 #: What each extra of pyproject.toml brings, as the modules a command imports.
-_EXTRA_MODULES = {"sim": ("mujoco", "numba", "matplotlib", "mcap", "foxglove", "pyarrow"), "ble": ("bumble",)}
+_EXTRA_MODULES = {"sim": ("mujoco", "matplotlib", "mcap", "foxglove", "pyarrow"), "ble": ("bumble",)}
 #: Commands and the extra they need; a robot process (`rescuemesh robot`) needs none.
 _COMMAND_EXTRA = {"run": "sim", "world": "sim", "bench": "sim", "radio-map": "sim", "ble-check": "ble", "sweep": "sim",
                   "report": "sim", "check": "sim", "radio-validate": "sim"}

@@ -159,18 +159,21 @@ def test_stamped_costs_are_each_cells_highest_kernel_value(room_costmap):
         np.testing.assert_array_equal(cm.cost, want)
 
 
-def test_a_large_map_checks_obstacles_without_the_offsets_table(room_costmap, monkeypatch):
-    # maps over OFFSETS_TABLE_MAX_CELLS keep no table (it has 4 times the map's cells): same answers
-    from navworld import room_with_door
-
-    monkeypatch.setattr(Costmap, "OFFSETS_TABLE_MAX_CELLS", 0)
-    plain = Costmap(room_with_door())
-    assert plain._lethal_offsets is None and room_costmap._lethal_offsets is not None
+def test_the_lethal_check_without_the_stamped_array_answers_as_the_stamped_array(room_costmap):
+    # the compiled check reads the static layer and the scan obstacles' lethal discs; against the
+    # stamped costs (`lethal`), point by point, with and without a clear radius
     rng = np.random.default_rng(9)
     for trial in range(40):
         points = rng.uniform((0.5, 0.5), (5.5, 3.5), size=(int(rng.integers(1, 30)), 2))
-        xs, ys = rng.uniform(0.3, 5.7, 25), rng.uniform(0.3, 3.7, 25)
-        with_table = room_costmap.with_obstacles(points, float(trial))
-        without = plain.with_obstacles(points, float(trial))
+        xs, ys = rng.uniform(-0.2, 6.2, 25), rng.uniform(-0.2, 4.2, 25)
+        lazy = room_costmap.with_obstacles(points, float(trial))
+        stamped = room_costmap.with_obstacles(points, float(trial))
+        _ = stamped.lethal  # builds the whole array: any_lethal then reads it
         for x, y in zip(xs, ys):
-            assert without.any_lethal(np.array([x]), np.array([y])) == with_table.any_lethal(np.array([x]), np.array([y]))
+            want = not stamped.is_free(x, y)
+            assert lazy.any_lethal(np.array([x]), np.array([y])) == want
+            assert stamped.any_lethal(np.array([x]), np.array([y])) == want
+            centre = (float(rng.uniform(0, 6)), float(rng.uniform(0, 4)))
+            far = math.hypot(x - centre[0], y - centre[1]) > 0.5
+            got = lazy.any_lethal(np.array([x]), np.array([y]), clear_center=centre, clear_radius=0.5)
+            assert got == (want and far)

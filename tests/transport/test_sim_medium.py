@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pytest
 
-from rescuemesh.radio import DiscChannel, LossCause, Reception, ble_adv_airtime_s
+from rescuemesh.radio import DiscChannel, ble_adv_airtime_s
 from rescuemesh.transport.sim_medium import AirTiming, SimMedium
 
 BROADCAST = 0xFF
@@ -54,11 +54,12 @@ class FakeStack:
 
 
 class DistanceChannel(DiscChannel):
-    """A disc whose received power falls 10 dB per metre: lets capture be tested."""
+    """A disc whose mean received power falls 10 dB per metre (a disc delivers every frame it can at
+    its mean power): lets capture be tested."""
 
-    def reception(self, tx_xy, rx_xy, frame_bytes, rng):
+    def mean_rx_power_dbm(self, tx_xy, rx_xy):
         d = float(np.hypot(rx_xy[0] - tx_xy[0], rx_xy[1] - tx_xy[1]))
-        return Reception(True, -10.0 * d, None) if d <= self.range_m else Reception(False, -1e9, LossCause.OUT_OF_RANGE)
+        return -10.0 * d if d <= self.range_m else -np.inf
 
 
 def medium_with(positions: dict[int, tuple[float, float]], channel=None, **kw):

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rescuemesh.geometry import Pose2D, wrap_angle
+from rescuemesh.nav import kernels
 from rescuemesh.nav.path import Polyline
 
 
@@ -51,18 +52,10 @@ def rotate_toward(heading_error: float, params: ControllerParams) -> float:
 
 def to_robot_frame(pose: Pose2D, points: np.ndarray) -> np.ndarray:
     """(N, 2) map-frame points in m expressed in the robot frame (x forward, y left)."""
-    return np.stack(_robot_frame_xy(pose, points), axis=1)
-
-
-def _robot_frame_xy(pose: Pose2D, points: np.ndarray, max_range: float = math.inf) -> tuple[np.ndarray, np.ndarray]:
-    """`to_robot_frame` as separate x and y arrays, leaving out points farther than `max_range` m."""
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
     dx, dy = pts[:, 0] - pose.x, pts[:, 1] - pose.y
-    if max_range < math.inf:
-        near = dx * dx + dy * dy <= max_range * max_range
-        dx, dy = dx[near], dy[near]
     c, s = math.cos(pose.yaw), math.sin(pose.yaw)
-    return c * dx + s * dy, -s * dx + c * dy
+    return np.stack((c * dx + s * dy, -s * dx + c * dy), axis=1)
 
 
 def obstacle_clearance(
@@ -74,36 +67,11 @@ def obstacle_clearance(
     margin), ahead of the robot's centre and within half a turn; its distance is the arc length to
     it minus the footprint's extent at its lateral offset. Points farther than `horizon` m (how far
     the robot will still drive, plus a margin) are ignored: a wall just beyond the goal does not
-    stop the robot short of it. inf when the corridor is clear.
+    stop the robot short of it. inf when the corridor is clear. (Compiled: nav/kernels.py.)
     """
-    pts = np.asarray(points_robot, dtype=float).reshape(-1, 2)
-    return _clearance(pts[:, 0], pts[:, 1], curvature, params, horizon)
-
-
-def _clearance(x: np.ndarray, y: np.ndarray, curvature: float, params: ControllerParams, horizon: float) -> float:
-    """`obstacle_clearance` of robot-frame points given as x and y arrays in m."""
-    if len(x) == 0:
-        return math.inf
-    half = params.footprint_radius + params.corridor_margin
-    if abs(curvature) < 1e-3:
-        inside = (x >= 0.0) & (np.abs(y) <= half)
-        along, lateral = x[inside], np.abs(y[inside])
-    else:
-        r = 1.0 / curvature  # signed: centre of the turn at (0, r)
-        lateral = np.abs(np.hypot(x, y - r) - abs(r))
-        band = lateral <= half  # the swept annulus; the angles are only needed for these points
-        x, y, lateral = x[band], y[band], lateral[band]
-        ang = np.arctan2(y - r, x)
-        phi = np.mod(ang + math.pi / 2, 2 * math.pi) if r > 0 else np.mod(math.pi / 2 - ang, 2 * math.pi)
-        ahead = phi <= math.pi  # phi in [0, 2 pi): anticlockwise (left turn) or clockwise angle travelled
-        along, lateral = abs(r) * phi[ahead], lateral[ahead]
-    if len(along) == 0:
-        return math.inf
-    lat = np.minimum(lateral, params.footprint_radius)
-    extent = np.sqrt(params.footprint_radius**2 - lat**2)
-    gap = along - extent
-    gap = gap[gap <= horizon]
-    return float(np.min(gap)) if len(gap) else math.inf
+    pts = np.ascontiguousarray(points_robot, dtype=float).reshape(-1, 2)
+    return kernels.scan_clearance(pts, 0.0, 0.0, 0.0, math.inf, curvature, params.footprint_radius,
+                                  params.corridor_margin, horizon)
 
 
 def obstacle_reach(params: ControllerParams) -> float:
@@ -188,9 +156,11 @@ def compute_velocity(
     if remaining < params.approach_distance:
         v = min(v, max(params.min_approach_linear, params.max_linear * remaining / params.approach_distance))
     if scan_points is not None and len(scan_points):
-        near_x, near_y = _robot_frame_xy(pose, scan_points, obstacle_reach(params))
         horizon = remaining + params.obstacle_end_margin
-        v *= obstacle_speed_scale(_clearance(near_x, near_y, curvature, params, horizon), params)
+        points = np.ascontiguousarray(scan_points, dtype=float).reshape(-1, 2)
+        clearance = kernels.scan_clearance(points, x, y, pose.yaw, obstacle_reach(params), curvature,
+                                           params.footprint_radius, params.corridor_margin, horizon)
+        v *= obstacle_speed_scale(clearance, params)
     omega = v * curvature
     if abs(omega) > params.max_angular:
         v *= params.max_angular / abs(omega)

@@ -20,9 +20,12 @@ import numpy as np
 from scipy import ndimage
 
 from rescuemesh.maps.grid import OccupancyGrid
+from rescuemesh.nav import kernels
 
 LETHAL = 1.0
 """Cost of a cell the robot's centre may not enter."""
+
+_NO_OBSTACLES = (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64))
 
 MAX_NON_LETHAL = 0.99
 """Cost just outside the inscribed radius (Nav2's 252/254)."""
@@ -98,7 +101,6 @@ class Costmap:
         self._kernel_reach = n  # cells: an obstacle cell's stamp ends this far from it
         self._lethal_disc = np.zeros((2 * n + 1, 2 * n + 1), dtype=bool)  # kernel offsets that are LETHAL
         self._lethal_disc[dr[kval >= LETHAL] + n, dc[kval >= LETHAL] + n] = True
-        self._lethal_offsets = self._offsets_table()
 
     # -- geometry -------------------------------------------------------------------------------
 
@@ -154,52 +156,23 @@ class Costmap:
         out[inside] = self.cost[rows, cols]
         return out
 
-    def any_lethal(self, xs: np.ndarray, ys: np.ndarray) -> bool:
-        """True when any of the map points (xs[i], ys[i]) in m is lethal (`costs_at(...) >= LETHAL`) or off the grid."""
-        rows = np.floor((ys - self.grid.origin_y) / self.resolution).astype(np.int64)
-        cols = np.floor((xs - self.grid.origin_x) / self.resolution).astype(np.int64)
-        try:
-            flat = np.ravel_multi_index((rows, cols), self.shape)  # bounds-checked in one call
-        except ValueError:
-            return True  # a point off the grid
-        if self._lethal is not None:
-            return bool(np.count_nonzero(self._lethal.reshape(-1)[flat]))
-        if np.count_nonzero(self._static_lethal.reshape(-1)[flat]):
-            return True
-        return self._near_obstacle(rows, cols)
-
-    #: cells: the lethal-offset table (`_offsets_table`) is kept for maps up to this many cells
-    OFFSETS_TABLE_MAX_CELLS = 1_000_000
-
-    def _offsets_table(self) -> np.ndarray | None:
-        """Whether each offset (drow, dcol) between two cells of the grid is in the lethal part of
-        the kernel, at [drow + rows - 1, dcol + cols - 1]; None on maps over OFFSETS_TABLE_MAX_CELLS
-        (the table has about 4 times as many cells as the map)."""
+    def any_lethal(self, xs: np.ndarray, ys: np.ndarray, *, clear_center: tuple[float, float] | None = None,
+                   clear_radius: float = 0.0) -> bool:
+        """True when any of the map points (xs[i], ys[i]) in m is lethal (`costs_at(...) >= LETHAL`) or off
+        the grid, leaving out those within `clear_radius` m of `clear_center`. Without the full cost
+        array, a point is lethal on a static lethal cell or in the lethal part of a scan obstacle
+        cell's kernel: the same answer as the stamped array, without stamping the map (compiled)."""
+        xs = np.ascontiguousarray(xs, dtype=float)
+        ys = np.ascontiguousarray(ys, dtype=float)
+        cx, cy = clear_center if clear_center is not None and clear_radius > 0.0 else (0.0, 0.0)
+        radius = clear_radius if clear_center is not None else 0.0
         h, w = self.shape
-        if h * w > self.OFFSETS_TABLE_MAX_CELLS:
-            return None
-        table = np.zeros((2 * h - 1, 2 * w - 1), dtype=bool)
-        n = self._lethal_disc.shape[0] // 2
-        nr, nc = min(n, h - 1), min(n, w - 1)  # offsets beyond the grid's size never occur
-        table[h - 1 - nr : h + nr, w - 1 - nc : w + nc] = self._lethal_disc[n - nr : n + nr + 1, n - nc : n + nc + 1]
-        return table
-
-    def _near_obstacle(self, rows: np.ndarray, cols: np.ndarray) -> bool:
-        """Whether any cell (rows[i], cols[i]) (on the grid) lies in the lethal part of an obstacle
-        cell's kernel: the same answer as the stamped array, without stamping the whole map."""
-        orow, ocol = self._obstacle_rc
-        table = self._lethal_offsets
-        if table is not None:  # one lookup per (cell, obstacle cell) pair, both on the grid
-            h, w = self.shape
-            wide = 2 * w - 1  # the table's row length: flat index (r - orow + h - 1) * wide + (c - ocol + w - 1)
-            centre = (h - 1) * wide + (w - 1)
-            at = (rows * wide + cols)[:, None] - (orow * wide + ocol - centre)[None, :]
-            return bool(np.count_nonzero(table.reshape(-1)[at]))
-        dr = rows[:, None] - orow[None, :]
-        dc = cols[:, None] - ocol[None, :]
-        n = self._lethal_disc.shape[0] // 2
-        near = (np.abs(dr) <= n) & (np.abs(dc) <= n)
-        return bool(near.any() and self._lethal_disc[dr[near] + n, dc[near] + n].any())
+        if self._lethal is not None:
+            lethal, (orow, ocol) = self._lethal.reshape(-1), _NO_OBSTACLES
+        else:
+            lethal, (orow, ocol) = self._static_lethal.reshape(-1), self._obstacle_rc
+        return kernels.any_lethal(xs, ys, self.grid.origin_x, self.grid.origin_y, self.resolution, h, w, lethal,
+                                  orow, ocol, self._lethal_disc, cx, cy, radius)
 
     def clearance_at(self, x: float, y: float) -> float:
         """Distance in m from (x, y) to the nearest static map obstacle (0 outside the grid)."""
@@ -230,37 +203,23 @@ class Costmap:
         Points on or next to a static obstacle (clearance < 1.5 cells) are already in the static
         layer and skipped. `now` (s) is kept as `obstacle_stamp`.
         """
-        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        pts = np.ascontiguousarray(points, dtype=float).reshape(-1, 2)
         out = object.__new__(Costmap)
         out.__dict__.update(self.__dict__)
         out.obstacle_stamp = now
-        # this runs for every scan, mostly on points of static walls: the cheap tests first, the
-        # clear radius on the rest; the points kept are followed by index (cheaper than masks on
-        # the (N, 2) array), flat indices computed before the cut
-        w = self.shape[1]
-        rows, cols, inside = self.cells_of(pts)
-        kept = np.flatnonzero(inside)
-        flat = (rows * w + cols)[kept]
-        stampable = self._stampable[flat]
-        kept, flat = kept[stampable], flat[stampable]
-        if clear_center is not None and clear_radius > 0.0 and len(flat):
-            near = pts[kept]
-            far = np.hypot(near[:, 0] - clear_center[0], near[:, 1] - clear_center[1]) > clear_radius
-            kept, flat = kept[far], flat[far]
+        # this runs for every scan, mostly on points of static walls (compiled: nav/kernels.py)
+        h, w = self.shape
+        cx, cy = clear_center if clear_center is not None else (0.0, 0.0)
+        kept, cells = kernels.scan_obstacle_cells(pts, self.grid.origin_x, self.grid.origin_y, self.resolution, h, w,
+                                                  self._stampable, cx, cy,
+                                                  clear_radius if clear_center is not None else 0.0)
         out.obstacle_points = pts[kept]
         out._cost = out._lethal = None  # built on first use: a blocked-path check does not need them
         out._window = None
-        if len(flat) == 0:
-            out._obstacle_cells = np.zeros(0, dtype=np.int64)
-            out._obstacle_rc = np.divmod(out._obstacle_cells, w)
+        out._obstacle_cells = cells
+        out._obstacle_rc = np.divmod(cells, w)
+        if len(cells) == 0:
             out._cost, out._lethal = self.static_cost, self._static_lethal
-            return out
-        flat.sort()  # np.unique(flat), in fewer calls on a few dozen cells
-        distinct = np.empty(len(flat), dtype=bool)
-        distinct[0] = True
-        np.not_equal(flat[1:], flat[:-1], out=distinct[1:])
-        out._obstacle_cells = flat[distinct]
-        out._obstacle_rc = np.divmod(out._obstacle_cells, w)
         return out
 
     @property

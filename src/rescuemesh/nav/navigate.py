@@ -355,12 +355,7 @@ class NavigateToPose:
         s = np.arange(s0, g.path.length_m, cm.resolution)  # np.interp clamps to the ends as point_at does
         xs = np.interp(s, g.path.cum, g.path.points[:, 0])
         ys = np.interp(s, g.path.cum, g.path.points[:, 1])
-        if not cm.any_lethal(xs, ys):
-            return False  # mostly so: the points near the goal need not be left out first
-        if g.clear_radius <= 0.0:
-            return True
-        far = np.hypot(xs - g.pose.x, ys - g.pose.y) > g.clear_radius
-        return bool(far.any()) and cm.any_lethal(xs[far], ys[far])
+        return cm.any_lethal(xs, ys, clear_center=(g.pose.x, g.pose.y), clear_radius=g.clear_radius)
 
     def _replan(self, g: _Goal, now: float, pose: Pose2D) -> bool:
         """Plan from `pose`; False (goal ABORTED "no path") when there is none even without scan obstacles."""

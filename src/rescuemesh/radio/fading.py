@@ -19,13 +19,17 @@ import math
 import numpy as np
 from scipy.special import chndtr
 
+from rescuemesh.jit import compiled
+
 TWO_PI = 2.0 * math.pi
 
 
+@compiled("f8(f8, f8, f8)")
 def rician_gain_from_uniforms(u_radius: float, u_angle: float, k: float) -> float:
     """Rician power gain (mean 1) from two independent uniforms in [0, 1), by Box-Muller.
 
-    The hot path: one `rng.random(n)` call feeds this and the PER draw together.
+    The hot path, compiled: the medium's reception kernel calls it per reception (callable from
+    Python too, as BleChannel.reception does).
     """
     r2 = -2.0 * math.log(1.0 - u_radius)  # |CN(0,1)|^2 * 2, from a uniform in (0, 1]
     if k == 0.0:

@@ -77,6 +77,7 @@ from rescuemesh.robot.records import (
     fits_wire,
     from_wire_pose,
     heartbeat_phase_s,
+    power_on_s,
     to_wire_pose,
 )
 from rescuemesh.robot.sensing import SensorCommands
@@ -123,6 +124,8 @@ class RobotBrain(SensorCommands):
         #: Final reports held for commanders out of reach, sent again once they are heard.
         self.custody = ReportCustody(capacity=self.config.report_custody_capacity,
                                      hold_s=self.config.report_custody_hold_s)
+        #: When this robot is switched on (BrainConfig.power_on_spread_s); it does nothing before.
+        self.power_on_s = power_on_s(self.address, self.config.power_on_spread_s)
         self._next_heartbeat_s = 0.0  # the first at once (peers learn our epoch from it), then on our phase
         self._heartbeat_phase_s = heartbeat_phase_s(self.address, self.config.heartbeat_period_s)
         self._handlers = {Follow: self._on_follow, Stop: self._on_stop, MoveAround: self._on_move_around,
@@ -188,7 +191,10 @@ class RobotBrain(SensorCommands):
         """Handle what the endpoint and the network reported, keep links and jobs, stream poses,
         heartbeat, and drive the body. A pose the wire cannot carry (|x| or |y| beyond 327.67 m, or
         not finite: a drifting odometry, a bad driver) is reported once, never sent, and halts the
-        robot (`pose_fault`) until the pose is good again; it never raises out of here."""
+        robot (`pose_fault`) until the pose is good again; it never raises out of here. Before the
+        robot is switched on (`power_on_s`): nothing."""
+        if now < self.power_on_s:
+            return
         pose = self.body.pose()
         if not fits_wire(pose):
             return self._halt_for_pose(now, f"pose ({pose.x:.2f}, {pose.y:.2f}, {pose.yaw:.2f}) is outside the "

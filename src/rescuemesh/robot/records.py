@@ -74,6 +74,9 @@ class BrainConfig:
 
     def policy_for(self, msg_type) -> LinkLossPolicy:
         return self.link_loss_policy.get(msg_type, LinkLossPolicy.HOLD)
+    #: The team's robots are switched on within this many s of the run's start (0: all at once): a
+    #: robot is off (it does nothing, its radio is off) until `power_on_s(address, spread)`.
+    power_on_spread_s: float = 0.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -155,6 +158,13 @@ REPORTS_PROGRESS = frozenset({MessageType.GOTO, MessageType.RETURN, MessageType.
 #: Commands that move the receiver: when one is given up, the sender sends Stop in case it runs.
 MOTION_COMMANDS = frozenset({MessageType.FOLLOW, MessageType.MOVE_AROUND, MessageType.GOTO, MessageType.RETURN,
                              MessageType.LAND_ON_TOP})
+
+
+def power_on_s(address: int, spread_s: float) -> float:
+    """When a robot is switched on, in s after the run's start: spread over `spread_s` by address
+    (golden-ratio spacing: a team's power-on times are spread, and no two close robots' coincide),
+    as an operator switching a team on by hand, or robots booting at their own pace, would give."""
+    return (address * 0.7548776662466927) % 1.0 * spread_s
 
 
 def heartbeat_phase_s(address: int, period_s: float) -> float:

@@ -9,6 +9,7 @@ of the physics step.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -20,6 +21,7 @@ from rescuemesh.mesh import NetworkStack
 from rescuemesh.nav import Costmap
 from rescuemesh.radio import make_channel
 from rescuemesh.robot import RobotBrain, robot_address
+from rescuemesh.robot.records import power_on_s
 from rescuemesh.runtime.assembly import assemble_robot, team_sealer
 from rescuemesh.runtime.config import RadioKind, SimConfig  # noqa: F401  (RadioKind: re-exported)
 from rescuemesh.sim import World
@@ -48,6 +50,17 @@ class SimRuntime:
         self.brains: dict[str, RobotBrain] = {}
         self.stacks: dict[str, NetworkStack] = {}
         self._make_team(starts)
+        #: Robots not switched on yet (BrainConfig.power_on_spread_s): address -> power-on time, s.
+        #: Their radios stay off until then (their brains do nothing until then either).
+        self._powering_on = {}
+        for name in starts:
+            at = power_on_s(robot_address(name), config.brain.power_on_spread_s)
+            if at > 0.0:
+                self._powering_on[robot_address(name)] = at
+                self.medium.set_radio_enabled(robot_address(name), False, 0.0)
+        #: Wall time in s spent in the world (physics and sensors), the medium, and the robots
+        #: (brains, or the round trips to robot processes), over the run's steps.
+        self.wall_s = {"world": 0.0, "medium": 0.0, "robots": 0.0}
         self.time = 0.0
         self.ticks = 0
         self.trajectories: dict[str, list[TrajectorySample]] = {name: [] for name in starts}
@@ -86,15 +99,37 @@ class SimRuntime:
         """One control step: physics, radio, brains, then `script` (a mission), then transmit."""
         self.ticks += 1
         now = round(self.ticks * self.config.control_dt, 9)  # no 0.30000000000000004 in the logs
+        wall = self.wall_s
+        t0 = time.perf_counter()
         self.world.step_to(now)
+        t1 = time.perf_counter()
         self.time = now
+        if self._powering_on:
+            self._power_on(now)
         self.medium.pump(now)
+        t2 = time.perf_counter()
         self._step_robots(now)
+        t3 = time.perf_counter()
         if script is not None:
             script(self)
         self._collect_robots(now)
+        t4 = time.perf_counter()
         self.medium.flush(now)  # what the brains sent leaves now, not at the next tick
+        t5 = time.perf_counter()
         self._record()
+        wall["world"] += t1 - t0
+        wall["medium"] += t2 - t1 + t5 - t4
+        wall["robots"] += t3 - t2
+
+    def powered_on(self, name: str) -> bool:
+        """Whether robot `name` has been switched on (BrainConfig.power_on_spread_s)."""
+        return robot_address(name) not in self._powering_on
+
+    def _power_on(self, now: float) -> None:
+        for address, at in list(self._powering_on.items()):
+            if now >= at:
+                del self._powering_on[address]
+                self.medium.set_radio_enabled(address, True, now)
 
     def _record(self) -> None:
         for name, body in self.world.bodies.items():

@@ -25,6 +25,8 @@ from functools import cached_property
 
 from rescuemesh.geometry import Pose2D
 from rescuemesh.protocol import ResultCode
+from rescuemesh.robot import robot_address
+from rescuemesh.robot.records import power_on_s
 from rescuemesh.scenarios.base import (CommandRequest, Scenario, ScenarioError, Verdict, following_error,
                                        last_result, mean_distance,
                                        no_collisions, settled, why_not)
@@ -52,6 +54,10 @@ LINK_ATTEMPTS = 8
 #: two TurtleBot 2 footprints (0.354 m) and a quarter metre between bumpers, so a chain of 30 is
 #: about 17 m long at rest and fits in the hall.
 CONVOY_FOLLOW_DISTANCE_M = 0.6
+#: The team is switched on within this many s (robot/records.py, power_on_s), as a real team is (by
+#: hand, or booting at its own pace), not all on one tick: 30 robots' first Heartbeats and their
+#: relays on one tick jammed the air, and robot_1's first Follow was given up at 0.5 s.
+POWER_ON_SPREAD_S = 2.0
 #: A final gap (centre to centre, m) counts as close to the following distance within these bounds:
 #: at least two footprints and a little room apart, at most the following distance plus 0.6 m.
 MIN_GAP_M = 0.4
@@ -119,14 +125,16 @@ class ConvoyScenario(Scenario):
 
     def sim_config(self):
         config = super().sim_config()
-        return replace(config, brain=replace(config.brain, follow_distance_m=CONVOY_FOLLOW_DISTANCE_M))
+        return replace(config, brain=replace(config.brain, follow_distance_m=CONVOY_FOLLOW_DISTANCE_M,
+                                             power_on_spread_s=POWER_ON_SPREAD_S))
 
     # --- the mission -----------------------------------------------------------------------------
 
     def tick(self, rt: SimRuntime) -> None:
         now = rt.time
         if self.formed_s is None:
-            self._form(rt, now)
+            if now >= self._team_up_s(rt):
+                self._form(rt, now)
             return
         leader = rt.brain(self.robots[0])
         route = self.route
@@ -140,6 +148,14 @@ class ConvoyScenario(Scenario):
         if self.arrived_s is not None and self.settled_s is None:
             if all(settled(rt, name, self.arrived_s) for name in self.robots):
                 self.settled_s = now
+
+    def _team_up_s(self, rt: SimRuntime) -> float:
+        """When the mission starts: once the whole team is switched on and each robot has had a
+        heartbeat period to hear the others' Heartbeats (their epochs: before, it cannot open their
+        frames), as an operator starts a team's mission once it is up."""
+        config = rt.config.brain
+        last = max(power_on_s(robot_address(name), config.power_on_spread_s) for name in self.robots)
+        return last + config.heartbeat_period_s if last > 0.0 else 0.0
 
     def _form(self, rt: SimRuntime, now: float) -> None:
         """One link at a time from the front: robot_k asks robot_k+1 once robot_k itself follows."""

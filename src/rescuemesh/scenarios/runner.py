@@ -152,6 +152,8 @@ def _judge(scenario, rt, wall_s: float, map_model) -> tuple[Verdict, dict]:
         result["runtime"] = {"kind": "one process",
                              "processes": [{"name": "world and robots", "pid": os.getpid(),
                                             "cpu_s": round(time.process_time(), 3)}]}
+    # the loop's wall time by part: world (physics, sensors), medium, robots (SimRuntime.wall_s)
+    result["runtime"]["wall_s_by_part"] = {part: round(s, 3) for part, s in getattr(rt, "wall_s", {}).items()}
     return verdict, result
 
 

@@ -36,10 +36,18 @@ metadata the mesh layer attaches to each Transmission, never the bytes), robots,
 # timer and pushes the new one. A radio starts a frame at max(now, previous start + advertising
 # interval) + advDelay, as a BLE advertiser does (Core Vol 6 Part B 4.4.2.2.1).
 #
-# Randomness: advDelay and relay delays come from a stream per radio; fading and PER draws from a
-# stream per ordered pair (sender, receiver), and the extra --loss from another: adding a robot
-# that no one hears changes nothing for the others. Same seed, same run. Every stream is a
-# UniformStream (radio/streams.py): the generator's numbers in its order, drawn 128 at a time.
+# Receptions are computed by compiled kernels over arrays indexed by radio (medium_kernels.py): one
+# call opens a frame's receptions at every radio, one collides two overlapping frames, one settles
+# a frame's receptions when it ends; Python is left with a call per stack that gets the frame. The
+# channel's mean power per pair of radios is kept in a matrix and asked of the channel again only for
+# pairs of which a radio moved to another cell of the channel's quantum (ChannelModel.mean_rx_power_dbm,
+# itself cached by cell pair).
+#
+# Randomness: advDelay comes from a stream per radio (a UniformStream, radio/streams.py); every draw
+# per reception (fading and PER, the extra --loss, the relay delay handed to the stack) is a
+# counter-based uniform keyed by (seed, purpose, the two radios, the sender's transmission number):
+# adding a robot that no one hears changes nothing for the others, and no draw depends on the order
+# receivers are visited in. Same seed, same run (docs/radio.md, "Draws per reception").
 
 from __future__ import annotations
 
@@ -56,6 +64,9 @@ import numpy as np
 from rescuemesh.protocol import BROADCAST
 from rescuemesh.radio import ChannelModel, LossCause, UniformStream
 from rescuemesh.radio.channel import ADV_CHANNELS
+from rescuemesh.radio.per import crc_covered_bits
+from rescuemesh.radio.streams import SEED_MASK
+from rescuemesh.transport import medium_kernels as k
 
 #: At most this many events in one pump: a runaway guard.
 MAX_EVENTS_PER_PUMP = 1_000_000
@@ -104,7 +115,9 @@ class MediumStats:
     hear it, or at its intended receiver (the destination, or every radio for a broadcast) even
     when that one could not (counted lost out of range or radio off). `unicast_*` and
     `broadcast_*` count the source's own transmissions (first sends and resends) at their intended
-    receivers; `relayed_*` the relays' copies at theirs (a relayed copy is not a unicast delivery)."""
+    receivers; `relayed_*` the relays' copies at theirs (a relayed copy is not a unicast delivery).
+    The reception counts live in `counts` (indices in medium_kernels), where the compiled kernels
+    count them."""
 
     transmissions: int = 0
     relayed_transmissions: int = 0
@@ -113,18 +126,43 @@ class MediumStats:
     max_frame_bytes: int = 0
     airtime_s: float = 0.0
     dropped_radio_off: int = 0  # frames a silent radio did not send
-    receptions_delivered: int = 0
-    receptions_lost: dict[str, int] = field(default_factory=lambda: {cause.value: 0 for cause in LossCause})
-    unicast_delivered: int = 0
-    unicast_lost: int = 0
-    broadcast_delivered: int = 0
-    broadcast_lost: int = 0
-    relayed_delivered: int = 0
-    relayed_lost: int = 0
+    counts: np.ndarray = field(default_factory=lambda: np.zeros(k.N_COUNTS, dtype=np.int64))
+
+    @property
+    def receptions_delivered(self) -> int:
+        return int(self.counts[k.DELIVERED])
+
+    @property
+    def receptions_lost(self) -> dict[str, int]:
+        return {cause.value: int(self.counts[k.CODE[cause]]) for cause in LossCause}
+
+    @property
+    def unicast_delivered(self) -> int:
+        return int(self.counts[k.UNICAST_DELIVERED])
+
+    @property
+    def unicast_lost(self) -> int:
+        return int(self.counts[k.UNICAST_LOST])
+
+    @property
+    def broadcast_delivered(self) -> int:
+        return int(self.counts[k.BROADCAST_DELIVERED])
+
+    @property
+    def broadcast_lost(self) -> int:
+        return int(self.counts[k.BROADCAST_LOST])
+
+    @property
+    def relayed_delivered(self) -> int:
+        return int(self.counts[k.RELAYED_DELIVERED])
+
+    @property
+    def relayed_lost(self) -> int:
+        return int(self.counts[k.RELAYED_LOST])
 
     @property
     def collisions(self) -> int:
-        return self.receptions_lost[LossCause.COLLISION.value]
+        return int(self.counts[k.COLLISION])
 
     def as_dict(self) -> dict:
         return {
@@ -136,7 +174,7 @@ class MediumStats:
             "airtime_s": round(self.airtime_s, 4),
             "dropped_radio_off": self.dropped_radio_off,
             "receptions_delivered": self.receptions_delivered,
-            "receptions_lost": dict(self.receptions_lost),
+            "receptions_lost": self.receptions_lost,
             "collisions": self.collisions,
             "unicast_delivered": self.unicast_delivered,
             "unicast_lost": self.unicast_lost,
@@ -181,13 +219,12 @@ class _Event(IntEnum):
 @dataclass(slots=True)
 class _Radio:
     address: int
+    index: int  # in attach order: its place in the medium's arrays
     stack: NetworkStack
     position: Callable[[], tuple[float, float]]
     rng: UniformStream
     enabled: bool = True
-    #: This radio's streams as a sender, by receiver address: fading and PER, and the extra loss.
-    fading: dict = field(default_factory=dict)
-    extra: dict = field(default_factory=dict)
+    transmissions: int = 0  # started so far: the counter of its draws
     queue: deque = field(default_factory=deque)
     tx_scheduled: bool = False
     next_allowed_s: float = float("-inf")
@@ -196,19 +233,19 @@ class _Radio:
 
 @dataclass(slots=True)
 class _Burst:
-    """One frame on the air and its receptions: `receivers` (in attach order) could hear it, each
-    with the channel's `verdicts[k]` and what the medium has since spoiled it with, `lost[k]`;
-    `slot` maps a receiver's address to k."""
+    """One frame on the air and its receptions, as arrays over the radios (medium_kernels): `state`
+    (NOT_RECEIVER, OK or what spoiled it), the channel's `rssi` and `ok` per receiver; `counter`: the
+    sender's transmission number, which keys its draws."""
 
     transmission: object  # rescuemesh.mesh.Transmission
     sender: _Radio
     start: float
     end: float
     record: AirRecord | None
-    receivers: list = field(default_factory=list)
-    verdicts: list = field(default_factory=list)
-    lost: list = field(default_factory=list)
-    slot: dict = field(default_factory=dict)
+    counter: int
+    state: np.ndarray
+    rssi: np.ndarray
+    ok: np.ndarray
 
 
 class SimMedium:
@@ -223,20 +260,36 @@ class SimMedium:
         if not 0.0 <= extra_loss < 1.0:
             raise ValueError(f"extra loss must be in [0, 1), got {extra_loss!r}")
         self.channel = channel
+        self.law = k.reception_law(channel)  # TypeError for a model the kernels cannot run
         self.timing = timing or AirTiming()
         self.extra_loss = extra_loss
         self.stats = MediumStats()
         self.records: list[AirRecord] | None = [] if record else None
         self._seed = int(seed)
+        self._key = np.uint64(self._seed & SEED_MASK)  # the draws' seed word
         self._radios: dict[int, _Radio] = {}
+        self._order_of: list[_Radio] = []  # by index
         self._heap: list = []
         self._order = itertools.count()
         self._timer_at: dict[int, float] = {}
         self._bursts: list[_Burst] = []  # frames on the air or not yet arrived, in start order
         self._now = 0.0
-        #: Radio positions read once per pump or flush (the world does not move inside one): a team
-        #: of 30 asked each body for its pose 29 times per frame on the air.
-        self._xy: dict[int, tuple[float, float]] = {}
+        self._bits: dict[int, int] = {}
+        # arrays over the radios, by index (grown by attach)
+        self._addresses = np.zeros(0, dtype=np.int64)
+        self._enabled = np.zeros(0, dtype=bool)
+        self._on_air_until = np.zeros(0)
+        #: Radio positions, read once per pump or flush when a frame needs them (the world does not
+        #: move inside one), the channel's cell of each, and the mean power between every two radios
+        #: with whether it is still valid (both radios in the cells it was computed for).
+        self._xy = np.zeros((0, 2))
+        self._places: list[tuple[float, float]] = []
+        self._cells = np.zeros((0, 2))
+        self._new_cells = np.zeros((0, 2))
+        self._positions_fresh = False
+        self._mean = np.zeros((0, 0))
+        self._mean_valid = np.zeros((0, 0), dtype=bool)
+        self._relay_delay = np.zeros(0)
         #: Optional observer of every delivery (a test harness, the spoof scenario): called as
         #: observe(transmitter, receiver, data, now, deliver) and must call deliver() itself.
         self.observe: Callable[[int, int, bytes, float, Callable[[], None]], None] | None = None
@@ -246,19 +299,34 @@ class SimMedium:
     def attach(self, address: int, stack: NetworkStack, position: Callable[[], tuple[float, float]]) -> None:
         if address in self._radios:
             raise ValueError(f"address {address} is already attached")
-        self._radios[address] = _Radio(address, stack, position, self._stream(1, address))
+        if self._bursts:
+            raise ValueError("attach radios before frames are on the air")
+        index = len(self._order_of)
+        radio = self._radios[address] = _Radio(address, index, stack, position, self._stream(1, address))
+        self._order_of.append(radio)
+        n = index + 1
+        self._addresses = np.append(self._addresses, np.int64(address))
+        self._enabled = np.append(self._enabled, True)
+        self._on_air_until = np.append(self._on_air_until, -np.inf)
+        self._xy = np.zeros((n, 2))
+        self._cells = np.full((n, 2), np.nan)  # no cell yet: every pair is computed when first needed
+        self._new_cells = np.zeros((n, 2))
+        self._positions_fresh = False
+        self._mean = np.full((n, n), -np.inf)
+        self._mean_valid = np.eye(n, dtype=bool)  # a radio never hears itself
+        self._relay_delay = np.zeros(n)
 
     def set_radio_enabled(self, address: int, enabled: bool, now: float) -> None:
         """Switch a radio off (it neither sends nor hears; its queued frames are dropped) or on."""
         radio = self._radio(address)
         radio.enabled = bool(enabled)
+        self._enabled[radio.index] = radio.enabled
         if not enabled:
             self.stats.dropped_radio_off += len(radio.queue)
             radio.queue.clear()
             for burst in self._bursts:
-                k = burst.slot.get(address)
-                if k is not None and burst.end > now:
-                    burst.lost[k] = burst.lost[k] or LossCause.RADIO_OFF
+                if burst.end > now and burst.state[radio.index] == k.OK:
+                    burst.state[radio.index] = k.RADIO_OFF
 
     def radio_enabled(self, address: int) -> bool:
         return self._radio(address).enabled
@@ -269,8 +337,8 @@ class SimMedium:
         """Queue, stamped `now`, every frame the stacks have to send (call it after the brains ran
         at `now`, the time the medium was last pumped to)."""
         self._now = max(self._now, now)
-        self._xy.clear()
-        for radio in self._radios.values():
+        self._positions_fresh = False
+        for radio in self._order_of:
             self._collect(radio, self._now)
 
     def pump(self, now: float) -> None:
@@ -300,22 +368,46 @@ class SimMedium:
         except KeyError:
             raise ValueError(f"no radio with address {address}") from None
 
-    def _position(self, radio: _Radio) -> tuple[float, float]:
-        xy = self._xy.get(radio.address)
-        if xy is None:
-            xy = self._xy[radio.address] = radio.position()
-        return xy
+    def _read_positions(self) -> None:
+        """Read every radio's position (once per pump or flush) and forget the mean powers of the
+        pairs of which a radio moved to another cell."""
+        self._places = places = [radio.position() for radio in self._order_of]
+        xy = self._xy
+        xy[:] = places
+        law = self.law
+        new = self._new_cells
+        k.cells_of(xy, law.quantum_m, law.origin[0], law.origin[1], new)
+        moved = np.flatnonzero((new != self._cells).any(axis=1))
+        if len(moved):
+            valid = self._mean_valid
+            valid[moved, :] = False
+            valid[:, moved] = False
+            valid[moved, moved] = True
+            self._cells[moved] = new[moved]
+        self._positions_fresh = True
+
+    def _mean_row(self, radio: _Radio) -> np.ndarray:
+        """The channel's mean power from `radio` to every radio (dBm), computing only the pairs not
+        known for the radios' present cells (and only towards radios that are on)."""
+        if not self._positions_fresh:
+            self._read_positions()
+        s = radio.index
+        valid = self._mean_valid[s]
+        if not valid.all():
+            missing = np.flatnonzero(~valid & self._enabled)
+            if len(missing):
+                power, places = self.channel.mean_rx_power_dbm, self._places
+                tx = places[s]
+                values = [power(tx, places[r]) for r in missing.tolist()]
+                self._mean[s, missing] = values
+                valid[missing] = True
+                if self.law.symmetric:
+                    self._mean[missing, s] = values
+                    self._mean_valid[missing, s] = True
+        return self._mean[s]
 
     def _stream(self, *key: int) -> UniformStream:
         return UniformStream(np.random.default_rng(np.random.SeedSequence(self._seed, spawn_key=key)))
-
-    def _pair_stream(self, streams: dict, purpose: int, sender: int, receiver: int) -> UniformStream:
-        """The stream (purpose, sender, receiver), made the first time it is needed, from `streams`:
-        the sender's dict of that purpose by receiver."""
-        stream = streams.get(receiver)
-        if stream is None:
-            stream = streams[receiver] = self._stream(purpose, sender, receiver)
-        return stream
 
     def _push(self, at: float, kind: _Event, payload) -> None:
         heapq.heappush(self._heap, (at, kind, next(self._order), payload))
@@ -364,11 +456,12 @@ class SimMedium:
         end = start + self.channel.airtime_s(size)
         radio.next_allowed_s = start + self.timing.adv_interval_s
         radio.on_air_until = end
+        s = radio.index
+        self._on_air_until[s] = end
         self._bursts = on_air = [burst for burst in self._bursts if burst.end > start]
         for burst in on_air:  # half duplex: what it was hearing is lost
-            k = burst.slot.get(radio.address)
-            if k is not None:
-                burst.lost[k] = burst.lost[k] or LossCause.HALF_DUPLEX
+            if burst.state[s] == k.OK:
+                burst.state[s] = k.HALF_DUPLEX
         self._count_transmission(transmission, size, end - start)
         record = None
         if self.records is not None:
@@ -377,85 +470,53 @@ class SimMedium:
                                transmission.data, None if transmission.dst == BROADCAST else False,
                                seq=transmission.seq)
             self.records.append(record)
-        burst = _Burst(transmission, radio, start, end, record)
-        sender_xy = self._position(radio)
-        dst = transmission.dst
-        # the loop runs once per frame per other radio: what it needs, read once
-        reception, fading = self.channel.reception, radio.fading
-        slot, receivers, verdicts, lost = burst.slot, burst.receivers, burst.verdicts, burst.lost
-        for receiver in self._radios.values():
-            if receiver is radio:
-                continue
-            address = receiver.address
-            verdict = None
-            if receiver.enabled:  # OUT_OF_RANGE exactly when not audible, nothing drawn (ChannelModel)
-                verdict = reception(sender_xy, self._position(receiver), size,
-                                    self._pair_stream(fading, 2, radio.address, address))
-            if verdict is None or verdict.cause is LossCause.OUT_OF_RANGE:
-                if dst == BROADCAST or dst == address:  # only intended ones count
-                    cause = LossCause.RADIO_OFF if not receiver.enabled else LossCause.OUT_OF_RANGE
-                    self._count_reception(transmission, receiver, cause)
-                continue
-            slot[address] = len(receivers)
-            receivers.append(receiver)
-            verdicts.append(verdict)
-            lost.append(LossCause.HALF_DUPLEX if receiver.on_air_until > start else None)
-        if burst.receivers:
+        bits = self._bits.get(size)
+        if bits is None:
+            bits = self._bits[size] = crc_covered_bits(size)
+        n = len(self._order_of)
+        burst = _Burst(transmission, radio, start, end, record, radio.transmissions,
+                       np.empty(n, dtype=np.int8), np.empty(n), np.empty(n, dtype=np.int8))
+        radio.transmissions += 1
+        law = self.law
+        heard = k.open_receptions(s, self._addresses, self._enabled, self._on_air_until, self._mean_row(radio),
+                                  start, transmission.dst, BROADCAST, bits, law.floor_dbm, law.fading,
+                                  law.rician_k, law.packet_errors, law.sensitivity_dbm, self._key, burst.counter,
+                                  transmission.relayed, burst.state, burst.rssi, burst.ok, self.stats.counts)
+        if heard:
+            third = (end - start) / ADV_CHANNELS
+            capture = self.timing.capture_db
             for other in on_air:
-                self._collide(burst, other)
+                # their PDUs share a channel in time only if their starts are closer than one PDU
+                if start - other.start < max(third, (other.end - other.start) / ADV_CHANNELS):
+                    k.collide(burst.state, burst.rssi, other.state, other.rssi, capture)
             on_air.append(burst)
             self._push(end, _Event.ARRIVAL, burst)
         if radio.queue:
             self._schedule_start(radio, end)
 
-    def _collide(self, burst: _Burst, other: _Burst) -> None:
-        """Collide `burst` with `other`, still on the air, at every radio that hears both, if their
-        PDUs share a channel in time (starts closer than one PDU), unless one captures the radio."""
-        start = burst.start
-        if start - other.start >= max((burst.end - start) / ADV_CHANNELS, (other.end - other.start) / ADV_CHANNELS):
-            return  # their PDUs are on different channels at any instant
-        capture = self.timing.capture_db
-        slot, lost, verdicts = other.slot, other.lost, other.verdicts
-        for k, receiver in enumerate(burst.receivers):
-            j = slot.get(receiver.address)
-            if j is None:
-                continue
-            margin = burst.verdicts[k].rssi_dbm - verdicts[j].rssi_dbm
-            if margin < capture:
-                burst.lost[k] = burst.lost[k] or LossCause.COLLISION
-            if -margin < capture:
-                lost[j] = lost[j] or LossCause.COLLISION
-
     def _arrive(self, burst: _Burst, at: float) -> None:
         transmission, sender, record = burst.transmission, burst.sender, burst.record
-        data = transmission.data
-        relay_delay_max_s, extra_loss, observe = self.timing.relay_delay_max_s, self.extra_loss, self.observe
-        for receiver, lost, verdict in zip(burst.receivers, burst.lost, burst.verdicts):
-            if lost is None and not receiver.enabled:
-                lost = LossCause.RADIO_OFF
-            if lost is None and not verdict.delivered:
-                lost = verdict.cause or LossCause.BIT_ERRORS
-            if lost is None and extra_loss > 0.0:
-                stream = self._pair_stream(sender.extra, 3, sender.address, receiver.address)
-                if stream.random() < extra_loss:
-                    lost = LossCause.EXTRA_LOSS
-            self._count_reception(transmission, receiver, lost)
-            if record is not None:
-                if lost is LossCause.COLLISION:
-                    record.collided = True
-                if lost is None:
-                    record.heard_by += 1
-                    if transmission.dst == receiver.address:
-                        record.dst_heard = True
-            if lost is not None:
-                continue
-            relay_delay = receiver.rng.random() * relay_delay_max_s if relay_delay_max_s else 0.0
+        delays = self._relay_delay
+        delivered, collided, dst_heard = k.close_receptions(
+            sender.index, self._addresses, self._enabled, burst.state, burst.ok, transmission.dst, BROADCAST,
+            self.extra_loss, self.timing.relay_delay_max_s, self._key, burst.counter, transmission.relayed, delays,
+            self.stats.counts)
+        if record is not None:
+            record.collided = bool(collided)
+            record.heard_by = delivered
+            if dst_heard:
+                record.dst_heard = True
+        if not delivered:
+            return
+        data, observe, radios, rssi = transmission.data, self.observe, self._order_of, burst.rssi
+        for r in np.flatnonzero(burst.state == k.OK).tolist():
+            receiver = radios[r]
             if observe is None:
-                if receiver.stack.receive(data, at, rssi_dbm=verdict.rssi_dbm, relay_delay_s=relay_delay) is False:
+                if receiver.stack.receive(data, at, rssi_dbm=float(rssi[r]), relay_delay_s=float(delays[r])) is False:
                     continue  # dropped: nothing new to send, no earlier timer
             else:
                 observe(sender.address, receiver.address, data, at,
-                        _delivery(receiver.stack, data, at, verdict.rssi_dbm, relay_delay))
+                        _delivery(receiver.stack, data, at, float(rssi[r]), float(delays[r])))
             self._collect(receiver, at)
 
     def _count_transmission(self, transmission, size: int, airtime_s: float) -> None:
@@ -469,30 +530,6 @@ class SimMedium:
             stats.relayed_transmissions += 1
         if transmission.segment is not None:
             stats.segment_transmissions += 1
-
-    def _count_reception(self, transmission, receiver: _Radio, lost: LossCause | None) -> None:
-        stats = self.stats
-        if lost is None:
-            stats.receptions_delivered += 1
-        else:
-            stats.receptions_lost[lost.value] += 1
-        if transmission.dst != BROADCAST and transmission.dst != receiver.address:
-            return
-        if transmission.relayed:
-            if lost is None:
-                stats.relayed_delivered += 1
-            else:
-                stats.relayed_lost += 1
-        elif transmission.dst == BROADCAST:
-            if lost is None:
-                stats.broadcast_delivered += 1
-            else:
-                stats.broadcast_lost += 1
-        else:
-            if lost is None:
-                stats.unicast_delivered += 1
-            else:
-                stats.unicast_lost += 1
 
 
 def _delivery(stack: NetworkStack, data: bytes, at: float, rssi: float, relay_delay: float) -> Callable[[], None]:
