@@ -76,7 +76,8 @@ def test_a_robot_process_runs_with_no_writable_numba_cache(tmp_path):
         rt = ProcessRuntime(scenario.map, scenario.starts(), scenario.sim_config(), host, join_timeout_s=60)
         for _ in range(40):  # 2 s: heartbeats go round, brains step (navigation's kernels included)
             rt.step()
-        assert rt.brain("robot_2").peer_capabilities
+        heard = {n.address for n in rt.stacks["robot_2"].node.neighbours()}
+        assert heard == {1, 3}  # robot_2 heard the others' heartbeats: its stack and brain ran
     finally:
         if rt is not None:
             rt.close()

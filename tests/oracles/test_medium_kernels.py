@@ -124,12 +124,12 @@ def test_the_kernels_are_the_oracles_on_inputs_recorded_from_a_running_medium(mo
     opened, closed, collided = k.open_receptions, k.close_receptions, k.collide
 
     def open_checked(sender, addresses, enabled, on_air, mean, start, dst, broadcast, bits, floor, fading, rician_k,
-                     packet_errors, sens, seed, counter, state, rssi, ok, counts):
+                     packet_errors, sens, seed, counter, relayed, state, rssi, ok, counts):
         want_counts = counts.copy()
         want = ref.open_receptions(sender, addresses.tolist(), enabled.tolist(), on_air.tolist(), mean.tolist(),
-                                   start, dst, broadcast, bits, medium.law, int(seed), counter, want_counts)
+                                   start, dst, broadcast, bits, medium.law, int(seed), counter, want_counts, relayed)
         heard = opened(sender, addresses, enabled, on_air, mean, start, dst, broadcast, bits, floor, fading, rician_k,
-                       packet_errors, sens, seed, counter, state, rssi, ok, counts)
+                       packet_errors, sens, seed, counter, relayed, state, rssi, ok, counts)
         assert state.tolist() == want[0] and counts.tolist() == want_counts.tolist()
         seen["open"] += 1
         return heard
@@ -141,13 +141,13 @@ def test_the_kernels_are_the_oracles_on_inputs_recorded_from_a_running_medium(mo
         assert state.tolist() == want_a and other_state.tolist() == want_b
         seen["collide"] += 1
 
-    def close_checked(sender, addresses, enabled, state, ok, dst, broadcast, extra, delay_max, seed, counter, delays,
-                      counts):
+    def close_checked(sender, addresses, enabled, state, ok, dst, broadcast, extra, delay_max, seed, counter, relayed,
+                      delays, counts):
         want_counts = counts.copy()
         want = ref.close_receptions(sender, addresses.tolist(), enabled.tolist(), state.tolist(), ok.tolist(), dst,
-                                    broadcast, extra, delay_max, int(seed), counter, want_counts)
-        got = closed(sender, addresses, enabled, state, ok, dst, broadcast, extra, delay_max, seed, counter, delays,
-                     counts)
+                                    broadcast, extra, delay_max, int(seed), counter, want_counts, relayed)
+        got = closed(sender, addresses, enabled, state, ok, dst, broadcast, extra, delay_max, seed, counter, relayed,
+                     delays, counts)
         assert list(got) == list(want[2:]) and state.tolist() == want[0] and counts.tolist() == want_counts.tolist()
         seen["close"] += 1
         return got
@@ -182,7 +182,7 @@ class _Sender(_Stack):
 class _Tx:
     def __init__(self, data, src):
         self.data, self.src, self.dst, self.msg_type = data, src, BROADCAST, 34
-        self.relayed, self.segment = False, None
+        self.relayed, self.segment, self.seq = False, None, 0
 
 
 @pytest.mark.parametrize("margin_db", [-3.0, 0.0, 2.0, 6.0])
@@ -195,6 +195,6 @@ def test_the_counter_draws_deliver_as_often_as_the_channel_expects(margin_db):
     mean = np.array([-np.inf, law.sensitivity_dbm + margin_db])
     n, delivered = 8_000, 0
     for counter in range(n):
-        delivered += bool(_open(law, 0, addresses, enabled, on_air, mean, BROADCAST, 9, counter)[3][1])
+        delivered += int(_open(law, 0, addresses, enabled, on_air, mean, BROADCAST, 9, counter)[3][1] == k.OK)
     expected = channel.delivery_at_margin(margin_db, 200 // 8 - 13)
     assert abs(delivered / n - expected) < 4.0 * np.sqrt(expected * (1 - expected) / n) + 1e-3
