@@ -13,7 +13,7 @@ import pytest
 from rescuemesh.geometry import Pose2D
 from rescuemesh.maps import load_map, office_map_path
 from rescuemesh.protocol import ResultCode
-from rescuemesh.robot.records import BrainEvent, OutgoingCommand
+from rescuemesh.robot.records import BrainEvent, BrainLog, OutgoingCommand
 from rescuemesh.runtime import control_messages as msg
 from rescuemesh.runtime.control import (
     PUBLIC_CONTROL_KEY,
@@ -159,14 +159,15 @@ def test_the_brains_status_reaches_the_stand_in_as_it_changes():
     from rescuemesh.runtime.robot_process import StatusTracker
 
     class Brain:  # what StatusTracker reads of a RobotBrain
-        running, finished, outgoing, log, commands_failed = None, [], {}, [], 0
+        running, finished, outgoing, log, commands_failed = None, [], {}, BrainLog(), 0
         received_data = []
 
     brain = Brain()
     tracker = StatusTracker(brain)
     stand_in = RemoteBrain(_Link(), "robot_1", 1, None, RemoteStack(_Link(), "robot_1", 1))
     brain.outgoing = {1: OutgoingCommand(1, 2, "Follow", 0.5)}
-    brain.log = [BrainEvent(0.5, "robot_1", "command_sent", "Follow to robot_2")]
+    brain.log = BrainLog()  # the brain's own log type (robot/records.py)
+    brain.log.append(BrainEvent(0.5, "robot_1", "command_sent", "Follow to robot_2"))
     stand_in.update(decode(encode(tracker.delta())))
     brain.outgoing[1].result = ResultCode.ACCEPTED
     delta = tracker.delta()

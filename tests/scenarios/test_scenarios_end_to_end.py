@@ -38,7 +38,9 @@ def test_follow(tmp_path):
     # with no random loss, robot_3 (behind walls in the hall once the others are in room_east) misses
     # broadcast heartbeats out of range, and relays frames while it still hears them
     p, n = result["protocol"], result["network"]
-    assert p["commands_confirmed"] == p["commands_sent"] == 1 and p["delivery_ratio"] == 1.0
+    # every command confirmed; per send on the air a few may still fall to fading at loss 0
+    assert p["commands_confirmed"] == p["commands_sent"] == 1 and p["command_confirm_ratio"] == 1.0
+    assert 0.9 <= p["delivery_ratio"] <= 1.0
     assert p["broadcast_receptions"]["lost"] > 0 and n["receptions_lost"]["extra_loss"] == 0
     assert n["relayed_frames"] > 0 and n["airtime_s"] > 0 and n["max_hops_delivered"] >= 1
     assert p["unicast_frames_sent"] + p["broadcast_frames_sent"] == p["frames_sent"]

@@ -211,17 +211,18 @@ class CallServer:
         self._world: bytes | None = None  # the run nonce of the world that set us up
         self._last = 0
         self._lock = threading.Lock()
+        self._closed = False
         self._publisher = session.declare_publisher(keys.robot_reply(name), **_PROMPT)
         self._subscriber = session.declare_subscriber(keys.robot_request(name), self._on_request)
 
     def _on_request(self, sample) -> None:
         with self._lock:
             reply = self._answer(sample)
-        if reply is not None:
-            try:
-                self._publisher.put(reply)
-            except zenoh.ZError:
-                pass  # the session is closing
+            if reply is not None and not self._closed:
+                try:
+                    self._publisher.put(reply)
+                except zenoh.ZError:
+                    pass  # the session is closing
 
     def _answer(self, sample) -> bytes | None:
         try:
@@ -258,8 +259,13 @@ class CallServer:
         return self.control_key.seal(_REPLY, nonce, counter, self.name, payload)
 
     def close(self) -> None:
+        """Stop answering. The reply to the last request (a Bye) may still be going out on Zenoh's
+        thread: the publisher is undeclared only after it (undeclaring it during a put raised
+        'Already borrowed' and left the process hanging)."""
         self._subscriber.undeclare()
-        self._publisher.undeclare()
+        with self._lock:
+            self._closed = True
+            self._publisher.undeclare()
 
 
 class CallClient:
