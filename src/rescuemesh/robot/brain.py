@@ -12,7 +12,9 @@ Commands not built yet are answered UNSUPPORTED. Link loss (paper IV.A, "stop co
 disconnecting and failing to reconnect"): when the mesh layer reports a peer lost (missed
 heartbeats), a command shared with it pauses at once (a moving robot halts) and a reconnect
 window opens; heard again within it, the command resumes; if not, both sides end it FAILED
-(LINK_LOST). docs/design.md has the timings.
+(LINK_LOST), unless the command type's link-loss policy says continue or return to base. Those
+handlers, and final reports held for a commander out of reach, are in robot/link_loss.py.
+docs/design.md has the timings.
 """
 
 from __future__ import annotations
@@ -57,11 +59,12 @@ from rescuemesh.robot.behaviours import (
     NavigateBehaviour,
     circle_waypoints,
 )
-from rescuemesh.robot.custody import HeldReport, ReportCustody
+from rescuemesh.robot.custody import ReportCustody
 from rescuemesh.robot.forwarding import Forwarder, JobProgress
 from rescuemesh.robot.naming import robot_name
 from rescuemesh.robot.policy import MOTION_LEVEL, Priority, Rank, Resource, conflict, priority_of, resources_of
 from rescuemesh.robot.landing import LandOnTopBehaviour
+from rescuemesh.robot.link_loss import LinkLossAndReports
 from rescuemesh.robot.records import (
     MOTION_COMMANDS,
     REPORTS_PROGRESS,
@@ -70,7 +73,6 @@ from rescuemesh.robot.records import (
     BrainEvent,
     BrainLog,
     FinishedBehaviour,
-    LinkLossPolicy,
     OutgoingCommand,
     PoseStream,
     Running,
@@ -85,7 +87,7 @@ from rescuemesh.robot.sensing import SensorCommands
 _LOG = logging.getLogger(__name__)
 
 
-class RobotBrain(SensorCommands):
+class RobotBrain(LinkLossAndReports, SensorCommands):
     """The brain of robot `name`: give it a body, an endpoint, a navigator, and step it."""
 
     def __init__(self, name: str, body: Body, network, nav: NavigateToPose, costmap: Costmap,
@@ -266,12 +268,6 @@ class RobotBrain(SensorCommands):
             if sensing.finished:
                 self._end_running(now, sensing.outcome, sensing.reason, sensing.detail, sensing=True)
         self.body.set_velocity(*velocity)
-
-    def _repeat_final_reports(self, now: float) -> None:
-        due, self._repeats = [r for r in self._repeats if r[0] <= now], [r for r in self._repeats if r[0] > now]
-        for _, commander, seq, left in due:
-            if self.endpoint.repeat_report(commander, seq) and left > 1:
-                self._repeats.append((now + self.config.final_report_spacing_s, commander, seq, left - 1))
 
     def _report_progress(self, now: float) -> None:
         """MAVLink's long-running command pattern: IN_PROGRESS with a percentage, every period."""
@@ -487,76 +483,6 @@ class RobotBrain(SensorCommands):
         self._note(now, "transfer_failed",
                    f"to {robot_name(event.dst)}: {event.acked} of {event.total} segments acknowledged")
 
-    # ----- link loss (paper IV.A): pause, reconnect window, give up -----
-
-    def _shares_command_with(self, peer: int) -> bool:
-        running = self.running
-        return (running is not None and running.commander == peer) or peer in self.streams
-
-    def _on_neighbour_lost(self, event: NeighbourLost, now: float) -> None:
-        peer = event.address
-        if not self._shares_command_with(peer) or peer in self.lost_peers:
-            return
-        running = self.running
-        if running is not None and running.commander == peer and peer not in self.streams:
-            policy = self.config.policy_for(running.msg_type)
-            if policy is LinkLossPolicy.CONTINUE:
-                self._note(now, "link_lost", f"{robot_name(peer)} silent since {event.last_heard_s:.2f} s: "
-                                             f"{running.behaviour.name} continues (link-loss policy continue)")
-                return
-            if policy is LinkLossPolicy.RETURN_TO_BASE:
-                self._note(now, "link_lost", f"{robot_name(peer)} silent since {event.last_heard_s:.2f} s: "
-                                             f"returning to base (link-loss policy return_to_base)")
-                self._end_running(now, ResultCode.FAILED, Reason.LINK_LOST, "link lost: returned to base")
-                base = self.config.base if self.config.base is not None else self.body.pose()
-                self._start(Running(NavigateBehaviour(self.nav, base, now), now), now)
-                return
-        self.lost_peers[peer] = now + self.config.reconnect_window_s
-        if running is not None and running.commander == peer:
-            running.behaviour.pause(now)
-            running.paused_for_link = True
-            self.body.set_velocity(0.0, 0.0)
-        if peer in self.streams:
-            self.streams[peer].paused = True
-        self._note(now, "link_lost", f"{robot_name(peer)} silent since {event.last_heard_s:.2f} s: paused, "
-                                     f"reconnect window {self.config.reconnect_window_s:g} s")
-
-    def _on_neighbour_found(self, event: NeighbourFound, now: float) -> None:
-        peer = event.address
-        if self.lost_peers.pop(peer, None) is None:
-            return
-        if self.running is not None and self.running.commander == peer and self.running.paused_for_link:
-            self.running.behaviour.resume(now)
-            self.running.paused_for_link = False
-        stream = self.streams.get(peer)
-        if stream is not None:
-            stream.paused, stream.last_confirmed_s = False, now
-            stream.next_send_s = now
-        self._note(now, "link_resumed", f"{robot_name(peer)} heard again ({event.hops} hops): resumed")
-
-    def _end_lost_links(self, now: float) -> None:
-        for peer, deadline in list(self.lost_peers.items()):
-            if now < deadline:
-                continue
-            del self.lost_peers[peer]
-            if self.running is not None and self.running.commander == peer and self.running.paused_for_link:
-                self._end_running(now, ResultCode.FAILED, Reason.LINK_LOST, "link lost")
-            if peer in self.streams:
-                self._end_stream(peer, now, Reason.LINK_LOST, "link lost")
-        for peer, stream in list(self.streams.items()):
-            if not stream.paused and now - stream.last_confirmed_s > self.config.partner_give_up_s:
-                self._end_stream(peer, now, Reason.PARTNER_SILENT,
-                                 f"no PoseUpdate confirmed for {now - stream.last_confirmed_s:.1f} s")
-
-    def _end_stream(self, peer: int, now: float, reason: Reason, detail: str) -> None:
-        stream = self.streams.pop(peer)
-        sent = self.outgoing.get(stream.follow_seq)
-        if sent is not None:
-            sent.result, sent.reason = ResultCode.FAILED, reason
-        self.commands_failed += 1
-        self._note(now, "follow_given_up", f"{robot_name(peer)}: {detail}")
-        self.command_stop(peer, now, automatic=True)  # best effort: "both sides stop it"
-
     # ----- ForwardMsg jobs -----
 
     def _forward(self, now: float) -> None:
@@ -626,37 +552,6 @@ class RobotBrain(SensorCommands):
         if running.commander is not None and running.seq is not None:
             self._final_report(running.commander, running.seq, running.msg_type, result, code, now,
                                progress=running.behaviour.progress() if result != ResultCode.DONE else 100)
-
-    def _final_report(self, commander: int, seq: int, msg_type: MessageType, result: ResultCode, code: Reason,
-                      now: float, progress: int) -> None:
-        """Report a command's final result to its commander: an unsolicited Confirm, not confirmed
-        in turn, so it goes out `final_report_copies` times, `final_report_spacing_s` apart."""
-        self._send_final_report(commander, seq, msg_type, result, code, now, progress)
-        if not self.network.is_reachable(commander, now):  # its copies are likely lost: keep it
-            self.custody.hold(HeldReport(commander, seq, msg_type, result, code, progress, now))
-            self._note(now, "report_held", f"{msg_type.name} {result.name} for {robot_name(commander)}, out of reach")
-
-    def _send_final_report(self, commander: int, seq: int, msg_type: MessageType, result: ResultCode, code: Reason,
-                           now: float, progress: int) -> None:
-        self.endpoint.confirm(commander, seq, msg_type, result, now, progress=progress, reason=code)
-        if self.config.final_report_copies > 1:
-            self._repeats.append((now + self.config.final_report_spacing_s, commander, seq,
-                                  self.config.final_report_copies - 1))
-
-    def _deliver_held_reports(self, now: float) -> None:
-        """Held final reports whose commander is reachable again go out (in copies); old ones are dropped."""
-        copies, spacing = self.config.final_report_copies, self.config.final_report_spacing_s
-        for r in self.custody.due(now, self.network.is_reachable):
-            if not self.endpoint.repeat_report(r.commander, r.seq):  # the endpoint forgot it: report afresh
-                self.endpoint.confirm(r.commander, r.seq, r.msg_type, r.result, now, progress=r.progress,
-                                      reason=r.reason)
-            if copies > 1:
-                self._repeats.append((now + spacing, r.commander, r.seq, copies - 1))
-            self._note(now, "report_delivered", f"{r.msg_type.name} {r.result.name} to {robot_name(r.commander)}, "
-                                                f"held {now - r.held_s:.1f} s")
-        for r in self.custody.expired(now):
-            self._note(now, "report_dropped", f"{r.msg_type.name} {r.result.name} for {robot_name(r.commander)}: "
-                                              f"not heard in {self.custody.hold_s:g} s")
 
     def _note(self, now: float, kind: str, detail: str = "") -> None:
         self.log.append(BrainEvent(round(now, 3), self.name, kind, detail))
