@@ -12,14 +12,15 @@ rospy comes from ROS 1 (Debian: python3-rospy), not from PyPI; it is imported on
 from __future__ import annotations
 
 import math
-import threading
-import time
 from dataclasses import dataclass
 
 import numpy as np
 
-from rescuemesh.body import Body, LaserScan
+from rescuemesh.body import LaserScan
 from rescuemesh.geometry import Pose2D, quaternion_to_yaw
+from rescuemesh.runtime.ros_body_common import NoOdometryError, RosBodyState
+
+__all__ = ["NoOdometryError", "Ros1Body", "Ros1Topics", "Ros1Unavailable"]  # NoOdometryError: its old home
 
 #: TurtleBot 2 (Kobuki) limits and footprint, as the simulated robots (sim/mjcf.py).
 TURTLEBOT2_MAX_LINEAR_SPEED = 0.7  # m/s
@@ -38,9 +39,6 @@ ROS1_INSTALL_HINT = ("ROS 1's Python client is not on PyPI: install it with your
 class Ros1Unavailable(ImportError):
     """rospy or the ROS message packages cannot be imported: ROS 1 is not installed or not visible."""
 
-
-class NoOdometryError(RuntimeError):
-    """No nav_msgs/Odometry has arrived on the odometry topic within the bound."""
 
 
 def import_rospy():
@@ -92,7 +90,7 @@ def pose_msg_to_pose2d(pose) -> Pose2D:
 def odometry_from_msg(msg) -> tuple[Pose2D, float, float] | None:
     """(pose, v, w) of a nav_msgs/Odometry, or None when any of them is not finite (a driver's NaN
     must not reach the brain: it would be planned on, and sent)."""
-    if not _finite_pose_msg(msg.pose.pose):
+    if not finite_pose_msg(msg.pose.pose):
         return None
     v, w = float(msg.twist.twist.linear.x), float(msg.twist.twist.angular.z)
     if not (math.isfinite(v) and math.isfinite(w)):
@@ -100,7 +98,7 @@ def odometry_from_msg(msg) -> tuple[Pose2D, float, float] | None:
     return pose_msg_to_pose2d(msg.pose.pose), v, w
 
 
-def _finite_pose_msg(pose) -> bool:
+def finite_pose_msg(pose) -> bool:
     """Whether a geometry_msgs/Pose's position and orientation are all finite."""
     p, q = pose.position, pose.orientation
     return all(math.isfinite(float(v)) for v in (p.x, p.y, p.z, q.x, q.y, q.z, q.w))
@@ -133,7 +131,7 @@ def compose(pose: Pose2D, offset: Pose2D) -> Pose2D:
     return Pose2D(pose.x + c * offset.x - s * offset.y, pose.y + s * offset.x + c * offset.y, pose.yaw + offset.yaw)
 
 
-class Ros1Body(Body):
+class Ros1Body(RosBodyState):
     """A ground robot reached through ROS 1 topics (the node must be initialised: `init_node`).
 
     Reads the latest nav_msgs/Odometry (pose in the odom frame, twist in the base frame) and
@@ -160,14 +158,7 @@ class Ros1Body(Body):
         self.topics = (topics or Ros1Topics()).resolve(name)
         self.max_linear_speed, self.max_angular_speed, self.radius = max_linear_speed, max_angular_speed, radius
         self.laser_offset = laser_offset
-        #: ROS time in s that is `now()` == 0 (the brain's clock starts near 0, as in simulation).
-        self.time_origin = rospy.get_time() if time_origin is None else time_origin
-        self._lock = threading.Lock()
-        self._odom: tuple[Pose2D, float, float] | None = None
-        self._odom_received_s: float | None = None  # ROS time of the latest Odometry's arrival
-        self._localised: Pose2D | None = None
-        self._scan: LaserScan | None = None
-        self._odometry_arrived = threading.Event()
+        self._init_state(rospy.get_time() if time_origin is None else time_origin)
         self._cmd = rospy.Publisher(self.topics.cmd_vel, Twist, queue_size=1)
         self._subscribers = [rospy.Subscriber(self.topics.odom, Odometry, self._on_odom, queue_size=1),
                              rospy.Subscriber(self.topics.scan, ScanMsg, self._on_scan, queue_size=1)]
@@ -193,7 +184,7 @@ class Ros1Body(Body):
         self._odometry_arrived.set()
 
     def _on_pose(self, msg) -> None:
-        if not _finite_pose_msg(msg.pose.pose):
+        if not finite_pose_msg(msg.pose.pose):
             self._rospy.logwarn_throttle(5.0, f"{self.name}: pose on {self.topics.pose} is not finite: ignored")
             return
         pose = pose_msg_to_pose2d(msg.pose.pose)
@@ -215,51 +206,21 @@ class Ros1Body(Body):
 
     # ----- the Body interface (the runtime's thread) -----
 
-    def wait_for_odometry(self, timeout_s: float) -> None:
-        """Block until an Odometry has arrived, or raise NoOdometryError after `timeout_s` s (wall time)."""
-        deadline = time.monotonic() + timeout_s
-        while not self._odometry_arrived.wait(0.1):
-            if self._rospy.is_shutdown() or time.monotonic() >= deadline:
-                raise NoOdometryError(
-                    f"{self.name}: no nav_msgs/Odometry on {self.topics.odom} within {timeout_s:g} s: is the robot "
-                    f"(or Gazebo) running, is ROS_MASTER_URI right, is the topic name right?")
+    def _ros_seconds(self) -> float:
+        return self._rospy.get_time()
 
-    def now(self) -> float:
-        """ROS time in s since `time_origin`: the clock to step this robot's brain with."""
-        return self._rospy.get_time() - self.time_origin
+    def _ros_running(self) -> bool:
+        return not self._rospy.is_shutdown()
 
-    def odometry_age(self) -> float:
-        """Seconds since the latest Odometry arrived (ROS time): a runtime may halt on a stale one."""
-        with self._lock:
-            received = self._odom_received_s
-        return math.inf if received is None else self._rospy.get_time() - received
+    def _odometry_topic(self) -> str:
+        return self.topics.odom
 
-    def _latest_odometry(self) -> tuple[Pose2D, float, float]:
-        with self._lock:
-            odom = self._odom
-        if odom is None:
-            raise NoOdometryError(f"{self.name}: no nav_msgs/Odometry on {self.topics.odom} yet")
-        return odom
-
-    def pose(self) -> Pose2D:
-        """The localised pose (the pose topic's latest) or, without one, the odometry's pose."""
-        with self._lock:
-            localised = self._localised
-        return localised if localised is not None else self._latest_odometry()[0]
-
-    def odometry(self) -> tuple[Pose2D, float, float]:
-        return self._latest_odometry()
-
-    def scan(self) -> LaserScan | None:
-        with self._lock:
-            return self._scan
+    def _no_odometry_hint(self) -> str:
+        return "is the robot (or Gazebo) running, is ROS_MASTER_URI right, is the topic name right?"
 
     def set_velocity(self, linear: float, angular: float) -> None:
-        if not (math.isfinite(linear) and math.isfinite(angular)):
-            raise ValueError(f"{self.name}: velocity command must be finite, got ({linear}, {angular})")
         twist = self._twist()
-        twist.linear.x = min(max(float(linear), -self.max_linear_speed), self.max_linear_speed)
-        twist.angular.z = min(max(float(angular), -self.max_angular_speed), self.max_angular_speed)
+        twist.linear.x, twist.angular.z = self._clamped(linear, angular)
         self._cmd.publish(twist)
 
     def close(self) -> None:

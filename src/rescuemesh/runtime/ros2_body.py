@@ -12,16 +12,14 @@ made, simulated time under `use_sim_time`). rclpy comes from ROS 2, not from PyP
 
 from __future__ import annotations
 
-import math
 import threading
-import time
 from dataclasses import dataclass, replace
 
-from rescuemesh.body import Body, LaserScan
 from rescuemesh.geometry import Pose2D
 from rescuemesh.runtime.ros1_body import (ODOMETRY_WAIT_S, TURTLEBOT2_MAX_ANGULAR_SPEED, TURTLEBOT2_MAX_LINEAR_SPEED,
-                                          TURTLEBOT2_RADIUS, NoOdometryError, compose, laser_scan_from_msg,
-                                          pose_msg_to_pose2d)
+                                          TURTLEBOT2_RADIUS, compose, finite_pose_msg,
+                                          laser_scan_from_msg, odometry_from_msg, pose_msg_to_pose2d)
+from rescuemesh.runtime.ros_body_common import RosBodyState
 
 ROS2_INSTALL_HINT = ("rclpy comes with ROS 2: install ROS 2 (Humble, Jazzy or Kilted: apt-get install "
                      "ros-DISTRO-ros-base), `source /opt/ros/DISTRO/setup.bash`, and run rescuemesh from a virtualenv "
@@ -120,7 +118,7 @@ class Ros2Topics:
     twist_stamped: bool = False
 
 
-class Ros2Body(Body):
+class Ros2Body(RosBodyState):
     """A ground robot reached through ROS 2 topics on `ros` (a Ros2Node).
 
     Odometry: reliable, depth 10 (what robot drivers publish); the scan: sensor-data QoS (best effort,
@@ -154,12 +152,7 @@ class Ros2Body(Body):
                                    float(ros.parameter("laser_yaw", float(laser_offset.yaw))))
         self.base_frame = base_frame
         self._twist = TwistStamped if topics.twist_stamped else Twist
-        self._lock = threading.Lock()
-        self._odom: tuple[Pose2D, float, float] | None = None
-        self._odom_received_s: float | None = None
-        self._localised: Pose2D | None = None
-        self._scan: LaserScan | None = None
-        self._odometry_arrived = threading.Event()
+        self._init_state(ros.seconds())
         node = ros.node
         self._cmd = node.create_publisher(self._twist, topics.cmd_vel, 10)
         self._subscriptions = [node.create_subscription(Odometry, topics.odom, self._on_odom, 10),
@@ -177,13 +170,22 @@ class Ros2Body(Body):
 
     # ----- the executor's threads -----
 
+    def _warn(self, text: str) -> None:
+        self.ros.node.get_logger().warning(f"{self.name}: {text}", throttle_duration_sec=5.0)
+
     def _on_odom(self, msg) -> None:
-        odom = (pose_msg_to_pose2d(msg.pose.pose), float(msg.twist.twist.linear.x), float(msg.twist.twist.angular.z))
+        odom = odometry_from_msg(msg)
+        if odom is None:  # refused: the last good odometry stays (and ages: odometry_age)
+            self._warn(f"odometry on {self.resolved['odom']} is not finite: ignored")
+            return
         with self._lock:
             self._odom, self._odom_received_s = odom, self.ros.seconds()
         self._odometry_arrived.set()
 
     def _on_pose(self, msg) -> None:
+        if not finite_pose_msg(msg.pose.pose):
+            self._warn(f"pose on {self.resolved['pose']} is not finite: ignored")
+            return
         pose = pose_msg_to_pose2d(msg.pose.pose)
         with self._lock:
             self._localised = pose
@@ -196,61 +198,37 @@ class Ros2Body(Body):
         stamp = stamp_seconds(msg.header.stamp)
         stamp = (stamp if stamp > 0.0 else self.ros.seconds()) - self.time_origin
         scan = laser_scan_from_msg(msg, compose(base, self.laser_offset), stamp)
+        if scan is None:
+            self._warn(f"scan on {self.resolved['scan']} has a geometry that is not finite: ignored")
+            return
         with self._lock:
             self._scan = scan
 
     # ----- the Body interface (the runtime's thread) -----
 
-    def wait_for_odometry(self, timeout_s: float) -> None:
-        """Block until an Odometry has arrived, or raise NoOdometryError after `timeout_s` s (wall time)."""
-        deadline = time.monotonic() + timeout_s
-        while not self._odometry_arrived.wait(0.1):
-            if not self.ros.context.ok() or time.monotonic() >= deadline:
-                raise NoOdometryError(
-                    f"{self.name}: no nav_msgs/msg/Odometry on {self.resolved['odom']} within {timeout_s:g} s: is the "
-                    f"robot (or Gazebo) running, on this ROS_DOMAIN_ID and RMW_IMPLEMENTATION, is the topic right "
-                    f"(--odom-topic, or --ros-args -r odom:=...)?")
+    odometry_type = "nav_msgs/msg/Odometry"
 
-    def now(self) -> float:
-        """The node's ROS time in s since `time_origin`: the clock to step this robot's brain with."""
-        return self.ros.seconds() - self.time_origin
+    def _ros_seconds(self) -> float:
+        return self.ros.seconds()
 
-    def odometry_age(self) -> float:
-        """Seconds since the latest Odometry arrived (ROS time)."""
-        with self._lock:
-            received = self._odom_received_s
-        return math.inf if received is None else self.ros.seconds() - received
+    def _ros_running(self) -> bool:
+        return self.ros.context.ok()
 
-    def _latest_odometry(self) -> tuple[Pose2D, float, float]:
-        with self._lock:
-            odom = self._odom
-        if odom is None:
-            raise NoOdometryError(f"{self.name}: no nav_msgs/msg/Odometry on {self.resolved['odom']} yet")
-        return odom
+    def _odometry_topic(self) -> str:
+        return self.resolved["odom"]
 
-    def pose(self) -> Pose2D:
-        """The localised pose (the pose topic's latest) or, without one, the odometry's pose."""
-        with self._lock:
-            localised = self._localised
-        return localised if localised is not None else self._latest_odometry()[0]
-
-    def odometry(self) -> tuple[Pose2D, float, float]:
-        return self._latest_odometry()
-
-    def scan(self) -> LaserScan | None:
-        with self._lock:
-            return self._scan
+    def _no_odometry_hint(self) -> str:
+        return ("is the robot (or Gazebo) running, on this ROS_DOMAIN_ID and RMW_IMPLEMENTATION, is the topic right "
+                "(--odom-topic, or --ros-args -r odom:=...)?")
 
     def set_velocity(self, linear: float, angular: float) -> None:
-        if not (math.isfinite(linear) and math.isfinite(angular)):
-            raise ValueError(f"{self.name}: velocity command must be finite, got ({linear}, {angular})")
+        linear, angular = self._clamped(linear, angular)
         msg = self._twist()
         twist = msg.twist if self.topics.twist_stamped else msg
         if self.topics.twist_stamped:
             msg.header.stamp = self.ros.node.get_clock().now().to_msg()
             msg.header.frame_id = self.base_frame
-        twist.linear.x = min(max(float(linear), -self.max_linear_speed), self.max_linear_speed)
-        twist.angular.z = min(max(float(angular), -self.max_angular_speed), self.max_angular_speed)
+        twist.linear.x, twist.angular.z = linear, angular
         if self.ros.context.ok():
             self._cmd.publish(msg)
 
