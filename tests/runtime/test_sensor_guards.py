@@ -49,3 +49,27 @@ def test_a_scan_whose_geometry_is_not_finite_is_refused(fields):
 
 def test_a_scan_taken_from_a_pose_that_is_not_finite_is_refused():
     assert laser_scan_from_msg(scan(), Pose2D(math.nan, 0.0, 0.0), 1.0) is None
+
+
+def test_a_ros2_body_refuses_odometry_a_pose_and_a_scan_that_are_not_finite():
+    # the ROS 2 body used to take Odometry and scans as they came (NaN included); its callbacks now
+    # use the same conversions as ROS 1's and warn (callbacks called on a stand-in, without rclpy)
+    import threading
+
+    from rescuemesh.runtime.ros2_body import Ros2Body
+
+    warnings = []
+    body = NS(_warn=warnings.append, resolved={"odom": "/r/odom", "pose": "/r/pose", "scan": "/r/scan"},
+              _lock=threading.Lock(), _odom=None, _odom_received_s=None, _localised=None, _scan=None,
+              _odometry_arrived=threading.Event(), ros=NS(seconds=lambda: 3.0), time_origin=0.0,
+              laser_offset=Pose2D(0.0, 0.0, 0.0))
+    Ros2Body._on_odom(body, odometry(x=math.nan))
+    assert body._odom is None and not body._odometry_arrived.is_set() and "not finite" in warnings[-1]
+    Ros2Body._on_odom(body, odometry())
+    assert body._odom[0].x == 1.0 and body._odometry_arrived.is_set()
+    Ros2Body._on_pose(body, NS(pose=odometry(qw=math.inf).pose))
+    assert body._localised is None and "/r/pose" in warnings[-1]
+    Ros2Body._on_scan(body, NS(header=NS(stamp=NS(sec=1, nanosec=0)), **vars(scan(angle_min=math.nan))))
+    assert body._scan is None and "/r/scan" in warnings[-1]
+    Ros2Body._on_scan(body, NS(header=NS(stamp=NS(sec=1, nanosec=0)), **vars(scan())))
+    assert body._scan is not None
