@@ -417,6 +417,7 @@ def _run(options: dict, counter: BootCounter, out: TextIO, err: TextIO, zenoh) -
         failure = str(exc)
     finally:
         restore()
+        watchdog = _close_watchdog(options["name"], err)
         closing = time.monotonic()
         closed = link.close()
         close_s = time.monotonic() - closing
@@ -424,6 +425,7 @@ def _run(options: dict, counter: BootCounter, out: TextIO, err: TextIO, zenoh) -
             body.close()
             paper.close()
             body.ros.close()
+        watchdog.cancel()
     report = _report(options, brain, stack, body, link, loop, mission, trajectory)
     report["link_close"] = {"clean": closed, "took_s": round(close_s, 3)}
     report["epoch"] = {"boot": options["epoch"], "last": counter.epoch, "file": str(counter.path)}
@@ -438,6 +440,24 @@ def _run(options: dict, counter: BootCounter, out: TextIO, err: TextIO, zenoh) -
           f"{report['path_length_m']:.2f} m to ({final[0]:.2f}, {final[1]:.2f}); "
           f"frames {link.stats.frames_sent} sent, {link.stats.frames_received} heard", file=out)
     return 0 if ok else 1
+
+
+#: How long closing the link and the ROS node may take once the run is over, in s. The body was
+#: halted when the loop ended; a middleware that hangs on its way out must not keep the process.
+CLOSE_WATCHDOG_S = 10.0
+
+
+def _close_watchdog(name: str, err: TextIO) -> threading.Timer:
+    """A timer that ends the process (exit 1) with one line if closing takes over CLOSE_WATCHDOG_S."""
+    def give_up() -> None:
+        print(f"rescuemesh robot: error: {name}: closing the link and the ROS node took over "
+              f"{CLOSE_WATCHDOG_S:g} s: exiting now (the wheels were stopped when the run ended)", file=err, flush=True)
+        os._exit(1)
+
+    timer = threading.Timer(CLOSE_WATCHDOG_S, give_up)
+    timer.daemon = True
+    timer.start()
+    return timer
 
 
 def _options(args: argparse.Namespace) -> dict:
