@@ -20,6 +20,7 @@ from rescuemesh.geometry import Pose2D
 from rescuemesh.protocol import (Follow, ForwardMsg, Goto, LandOnTop, MoveAround, Pose, ResultCode, Return, ShowCam,
                                  ShowScan, Stop, encode_inner)
 from rescuemesh.robot import robot_address
+from rescuemesh.robot.forwarding import FINAL_RESULTS  # results after which a command does no more
 from rescuemesh.robot.records import to_wire_pose
 from rescuemesh.runtime import RadioKind
 from rescuemesh.scenarios.base import CommandRequest, Scenario, ScenarioError, ScenarioOptions, Verdict, no_collisions
@@ -27,9 +28,6 @@ from rescuemesh.scenarios.base import CommandRequest, Scenario, ScenarioError, S
 if TYPE_CHECKING:
     from rescuemesh.runtime.sim_loop import SimRuntime
 
-#: Results after which a command does no more (a step that sent it has finished).
-FINAL = frozenset({ResultCode.DONE, ResultCode.FAILED, ResultCode.CANCELLED, ResultCode.DENIED,
-                   ResultCode.UNSUPPORTED, ResultCode.TEMPORARILY_REJECTED})
 #: Commands whose ACCEPTED is their outcome (they report no progress and no final result).
 _ACCEPTED_IS_FINAL = frozenset({CommandType.FOLLOW, CommandType.STOP})
 #: A mission has played out this long after its last step finished (reports still on the air land).
@@ -177,7 +175,7 @@ class MissionScenario(Scenario):
             sent = _latest_answered(state.request)
             if sent is not None and sent.result is not None:
                 state.results.setdefault(sent.result, now)
-                final = sent.result in FINAL or (sent.result == ResultCode.ACCEPTED
+                final = sent.result in FINAL_RESULTS or (sent.result == ResultCode.ACCEPTED
                                                  and action.command.type in _ACCEPTED_IS_FINAL)
                 if final and sent.seq != state.request.seqs[-1] and not state.request.brain.outgoing[
                         state.request.seqs[-1]].failed:

@@ -46,16 +46,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import Enum
 
-from rescuemesh.protocol import (BROADCAST, Data, FrameError, Message, MessageType, Reason, ResultCode, decode_inner,
-                                 is_command)
+from rescuemesh.protocol import BROADCAST, Data, FrameError, Message, Reason, ResultCode, decode_inner, is_command
+from rescuemesh.robot.records import REPORTS_PROGRESS
 
 #: Results after which the target does no more with a command (MAVLink: anything but IN_PROGRESS
 #: and, for a long-running command, ACCEPTED).
 FINAL_RESULTS = frozenset({ResultCode.DONE, ResultCode.FAILED, ResultCode.CANCELLED, ResultCode.DENIED,
                            ResultCode.UNSUPPORTED, ResultCode.TEMPORARILY_REJECTED})
-#: Inner commands whose target reports progress and a final result (robot/records.py REPORTS_PROGRESS).
-LONG_RUNNING = frozenset({MessageType.GOTO, MessageType.RETURN, MessageType.MOVE_AROUND, MessageType.SHOW_SCAN,
-                          MessageType.SHOW_CAM, MessageType.LAND_ON_TOP})
 
 
 class JobState(Enum):
@@ -150,7 +147,7 @@ class Forwarder:
         job = self._sent_job(src, ref_seq)
         if job is None:
             return None
-        long_running = is_command(job.inner) and job.inner.TYPE in LONG_RUNNING
+        long_running = is_command(job.inner) and job.inner.TYPE in REPORTS_PROGRESS
         if long_running and result not in FINAL_RESULTS:
             if job.state is JobState.SENT:
                 job.state, job.deadline_s = JobState.RUNNING, now + self.result_timeout_s

@@ -40,7 +40,6 @@ class Ros1Unavailable(ImportError):
     """rospy or the ROS message packages cannot be imported: ROS 1 is not installed or not visible."""
 
 
-
 def import_rospy():
     """rospy, or Ros1Unavailable naming what to install."""
     try:
