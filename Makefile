@@ -63,7 +63,7 @@ $(ROS2_VENV)/.installed: pyproject.toml constraints-ros2.txt $(wildcard src/resc
 	echo '*' > $(ROS2_VENV)/.gitignore
 	$(ROS2_VENV)/bin/pip install --quiet --upgrade pip
 	$(ROS2_VENV)/bin/pip install --quiet -c constraints-ros2.txt $(ROS2_WHEELS) -e '.[ros2,test]'
-	$(ROS2_VENV)/bin/python -m rescuemesh.runtime.ros2_msgs --prefix $(ROS2_VENV)
+	$(ROS2_VENV)/bin/python -m rescuemesh.runtime.ros.ros2_msgs --prefix $(ROS2_VENV)
 	touch $@
 
 test-ros2: $(ROS2_VENV)/.installed
@@ -73,10 +73,10 @@ bench: $(VENV)/.installed
 	$(BIN)/rescuemesh bench --out out/bench.json
 
 fuzz: $(VENV)/.installed
-	$(BIN)/python -m rescuemesh.fuzz --frames 1000000
+	$(BIN)/python -m rescuemesh.checks.fuzz --frames 1000000
 
 fuzz-control: $(VENV)/.installed  # the control plane's input path, 10^5 messages (docs/processes.md)
-	$(BIN)/python -m rescuemesh.runtime.control_fuzz --messages 100000
+	$(BIN)/python -m rescuemesh.checks.control_fuzz --messages 100000
 
 clean:
 	rm -rf $(VENV) $(ROS_VENV) $(ROS2_VENV) out .pytest_cache

@@ -15,7 +15,7 @@ import pytest  # noqa: E402
 
 @pytest.fixture(autouse=True, scope="session")
 def _private_state_dir(tmp_path_factory):
-    """Robot processes keep their boot counter under $XDG_STATE_HOME (runtime/boot_counter.py): every
+    """Robot processes keep their boot counter under $XDG_STATE_HOME (runtime/onboard/boot_counter.py): every
     test, and every process a test starts, gets a fresh folder of its own, never the user's."""
     old = os.environ.get("XDG_STATE_HOME")
     os.environ["XDG_STATE_HOME"] = str(tmp_path_factory.mktemp("xdg-state"))

@@ -8,8 +8,8 @@ import sys
 import pytest
 
 from rescuemesh.maps import load_map, office_map_path
-from rescuemesh.runtime.process_world import ProcessRuntime, WorldHost
-from rescuemesh.runtime.spawn import free_endpoint
+from rescuemesh.runtime.processes.process_world import ProcessRuntime, WorldHost
+from rescuemesh.runtime.processes.spawn import free_endpoint
 from rescuemesh.scenarios import ScenarioOptions
 from rescuemesh.scenarios.follow import FollowScenario
 

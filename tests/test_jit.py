@@ -57,8 +57,8 @@ def test_kernels_compile_without_a_cache_when_nothing_is_writable(tmp_path):
 
 def test_a_robot_process_runs_with_no_writable_numba_cache(tmp_path):
     from rescuemesh.maps import load_map, office_map_path
-    from rescuemesh.runtime.process_world import ProcessRuntime, WorldHost
-    from rescuemesh.runtime.spawn import free_endpoint
+    from rescuemesh.runtime.processes.process_world import ProcessRuntime, WorldHost
+    from rescuemesh.runtime.processes.spawn import free_endpoint
     from rescuemesh.scenarios import ScenarioOptions
     from rescuemesh.scenarios.follow import FollowScenario
 

@@ -239,7 +239,7 @@ def _main(argv: list[str] | None) -> int:
     if argv[:1] == ["robot"] and any(a == "--link" or a.startswith("--link=") for a in argv):
         return _linked_robot(argv[1:])
     if argv[:1] == ["robot"] and any(a in ("-h", "--help") for a in argv):  # both kinds of robot process
-        from rescuemesh.runtime.linked_robot import build_parser as linked_parser
+        from rescuemesh.runtime.onboard.linked_robot import build_parser as linked_parser
 
         robot_parser = next(a for a in build_parser()._actions
                             if isinstance(a, argparse._SubParsersAction)).choices["robot"]
@@ -258,7 +258,7 @@ def _main(argv: list[str] | None) -> int:
         if args.command == "keys":
             return _keys_new(args.file)
         if args.command == "ble-check":
-            from rescuemesh.runtime.ble_check import main_ble_check
+            from rescuemesh.checks.ble_check import main_ble_check
 
             return main_ble_check(args.hci, sys.stdout, err=sys.stderr)
         if args.command == "robot":
@@ -266,7 +266,7 @@ def _main(argv: list[str] | None) -> int:
         if args.command in ("sweep", "report", "check"):
             return _experiments(args)
         if args.command == "bench":
-            from rescuemesh.bench import run_bench
+            from rescuemesh.checks.bench import run_bench
 
             _check_seed(args.seed)
             _writable_folder(args.out.parent)
@@ -305,7 +305,7 @@ def _run(args) -> int:
     from rescuemesh.maps import MapError
     from rescuemesh.runtime import RadioKind
     from rescuemesh.scenarios import ScenarioError, ScenarioOptions
-    from rescuemesh.runtime.control import ControlError
+    from rescuemesh.runtime.processes.control import ControlError
 
     if not (0.0 <= args.loss < 1.0):
         raise UsageError(f"--loss must be in [0, 1), got {args.loss}")
@@ -335,7 +335,7 @@ def _run(args) -> int:
         name = None
     out = _writable_folder(args.out or Path("out") / (name or scenario.name))
     if args.command == "world":
-        from rescuemesh.runtime.spawn import ProcessOptions
+        from rescuemesh.runtime.processes.spawn import ProcessOptions
 
         if not 0 < args.wait < math.inf:
             raise UsageError(f"--wait must be a finite number of seconds > 0, got {args.wait}")
@@ -386,7 +386,7 @@ def _early_team(args, options, out: Path):
     process imports MuJoCo and builds the world (a robot takes about as long to import and connect).
     Returns the run's ProcessOptions and the scenario, built once for the team and the run."""
     from rescuemesh.maps import MapError, load_map, office_map_path
-    from rescuemesh.runtime.spawn import ProcessOptions, RobotProcesses, free_endpoint
+    from rescuemesh.runtime.processes.spawn import ProcessOptions, RobotProcesses, free_endpoint
     from rescuemesh.scenarios import ScenarioError, get_scenario
 
     try:
@@ -403,7 +403,7 @@ def _early_team(args, options, out: Path):
 
 
 def _endpoint(text: str) -> str:
-    from rescuemesh.runtime.control import check_endpoint
+    from rescuemesh.runtime.processes.control import check_endpoint
 
     try:
         return check_endpoint(text)
@@ -412,7 +412,7 @@ def _endpoint(text: str) -> str:
 
 
 def _run_id(text: str) -> str:
-    from rescuemesh.runtime.control import Keys
+    from rescuemesh.runtime.processes.control import Keys
 
     try:
         return Keys(text).run
@@ -422,8 +422,8 @@ def _run_id(text: str) -> str:
 
 def _robot(args) -> int:
     from rescuemesh.robot import robot_address
-    from rescuemesh.runtime.control import ControlError
-    from rescuemesh.runtime.robot_process import serve_robot
+    from rescuemesh.runtime.processes.control import ControlError
+    from rescuemesh.runtime.processes.robot_process import serve_robot
 
     try:
         robot_address(args.name)
@@ -449,7 +449,7 @@ def _robot(args) -> int:
 
 def _linked_robot(argv: list[str]) -> int:
     """`rescuemesh robot --link zenoh ...`: a robot on a real network, its frames over Zenoh with no
-    simulated channel (runtime/linked_robot.py, docs/networks.md). Ends the process itself: a Zenoh
+    simulated channel (runtime/onboard/linked_robot.py, docs/networks.md). Ends the process itself: a Zenoh
     session still closing must not meet a finalising interpreter."""
     rest, link = [], None
     for i, arg in enumerate(argv):
@@ -463,7 +463,7 @@ def _linked_robot(argv: list[str]) -> int:
         print(f"rescuemesh: error: --link takes zenoh (frames over Zenoh on a real network) or ble (over a "
               f"Bluetooth LE controller, --hci SPEC), got {link!r}", file=sys.stderr)
         return EXIT_USAGE
-    from rescuemesh.runtime.linked_robot import exit_process, main as linked_main
+    from rescuemesh.runtime.onboard.linked_robot import exit_process, main as linked_main
 
     exit_process(linked_main(["--link", link, *rest]))  # first: what follows --ros-args is rclpy's
 

@@ -11,7 +11,7 @@ import rescuemesh.mesh
 PACKAGE = Path(rescuemesh.mesh.__file__).parent
 BANNED = {"random", "time", "socket", "asyncio", "threading", "datetime", "numpy"}
 #: Frame security uses the cryptography package (AES-CCM, HKDF). The fuzzer, which draws random
-#: numbers and reads a clock, is a command outside the package (rescuemesh/fuzz.py).
+#: numbers and reads a clock, is a command outside the package (rescuemesh/checks/fuzz.py).
 ALLOWED = {
     "security.py": {"cryptography"},
     "keys.py": {"cryptography"},

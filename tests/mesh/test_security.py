@@ -13,7 +13,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from protocol.strategies import frames as protocol_frames  # tests/ is on sys.path (rootdir packages)
-from rescuemesh import fuzz
+from rescuemesh.checks import fuzz
 from rescuemesh.mesh.frames import AUTH_BIT, crc_ok, read_on_air, with_ttl
 from rescuemesh.mesh.frames import seal as with_crc
 from rescuemesh.mesh.keys import derive_frame_key, team_key_from_seed

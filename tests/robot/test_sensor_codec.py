@@ -342,7 +342,7 @@ def test_sensor_decode_error_is_a_value_error() -> None:
 
 def _chain(hops: int, seed: int):
     """A chain of robots 8 m apart on the 10 m disc: each hears only its neighbours. Authenticated
-    frames and relay retransmissions as the simulated team has them (runtime/mesh_bench.py)."""
+    frames and relay retransmissions as the simulated team has them (checks/mesh_bench.py)."""
     medium = SimMedium(DiscChannel(), seed)
     sealer = FrameSealer.from_team_key(team_key_from_seed(seed))
     stacks = []

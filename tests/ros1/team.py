@@ -26,8 +26,8 @@ from rescuemesh.protocol import ResultCode
 from rescuemesh.robot import robot_address
 from rescuemesh.runtime.assembly import assemble_robot, team_sealer
 from rescuemesh.runtime.config import SimConfig
-from rescuemesh.runtime.ros1_body import NoOdometryError, Ros1Body, import_rospy, init_node
-from rescuemesh.runtime.ros1_paper import Ros1Paper
+from rescuemesh.runtime.ros.ros1_body import NoOdometryError, Ros1Body, import_rospy, init_node
+from rescuemesh.runtime.ros.ros1_paper import Ros1Paper
 
 CONTROL_DT = 0.05  # s
 

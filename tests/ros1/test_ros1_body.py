@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rescuemesh.geometry import Pose2D
-from rescuemesh.runtime.ros1_body import Ros1Topics, compose, laser_scan_from_msg, pose_msg_to_pose2d
+from rescuemesh.runtime.ros.ros1_body import Ros1Topics, compose, laser_scan_from_msg, pose_msg_to_pose2d
 
 pytestmark = pytest.mark.ros1
 

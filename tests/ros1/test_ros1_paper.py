@@ -9,7 +9,7 @@ import time
 import pytest
 
 from rescuemesh.protocol import MessageType, MoveAround, Pose
-from rescuemesh.runtime.ros1_paper import (REQUESTS, TYPE_NAME, RequestError, Traffic, fill_command,
+from rescuemesh.runtime.ros.ros1_paper import (REQUESTS, TYPE_NAME, RequestError, Traffic, fill_command,
                                            load_command_class, parse_request)
 
 pytestmark = pytest.mark.ros1

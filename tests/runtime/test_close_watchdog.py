@@ -9,7 +9,7 @@ def test_a_hung_close_ends_the_process_with_one_line():
     # this used to leave a ROS 2 robot running after Ctrl-C when rclpy's shutdown hung (seen once in
     # nine runs of test_ctrl_c_of_the_robot_process_sends_a_zero_twist)
     code = ("import sys, time\n"
-            "from rescuemesh.runtime import linked_robot\n"
+            "from rescuemesh.runtime.onboard import linked_robot\n"
             "linked_robot.CLOSE_WATCHDOG_S = 0.3\n"
             "linked_robot._close_watchdog('robot_1', sys.stderr)\n"
             "time.sleep(30)\n")
@@ -22,7 +22,7 @@ def test_a_hung_close_ends_the_process_with_one_line():
 
 def test_a_close_in_time_cancels_the_watchdog():
     code = ("import sys, time\n"
-            "from rescuemesh.runtime import linked_robot\n"
+            "from rescuemesh.runtime.onboard import linked_robot\n"
             "linked_robot.CLOSE_WATCHDOG_S = 0.3\n"
             "linked_robot._close_watchdog('robot_1', sys.stderr).cancel()\n"
             "time.sleep(0.8)\n")

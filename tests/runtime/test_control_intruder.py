@@ -11,7 +11,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from rescuemesh.runtime.spawn import free_endpoint
+from rescuemesh.runtime.processes.spawn import free_endpoint
 
 RESCUEMESH = [sys.executable, "-m", "rescuemesh"]
 INTRUDER = [sys.executable, str(Path(__file__).parent / "tools" / "intruder.py")]

@@ -14,8 +14,8 @@ from rescuemesh.geometry import Pose2D
 from rescuemesh.maps import load_map, office_map_path
 from rescuemesh.protocol import ResultCode
 from rescuemesh.robot.records import BrainEvent, BrainLog, OutgoingCommand
-from rescuemesh.runtime import control_messages as msg
-from rescuemesh.runtime.control import (
+from rescuemesh.runtime.processes import control_messages as msg
+from rescuemesh.runtime.processes.control import (
     PUBLIC_CONTROL_KEY,
     CallClient,
     CallServer,
@@ -24,8 +24,8 @@ from rescuemesh.runtime.control import (
     Keys,
     control_key_from_team_key,
 )
-from rescuemesh.runtime.control_codec import CodecError, decode, encode
-from rescuemesh.runtime.control_fuzz import fuzz, pickle_call
+from rescuemesh.runtime.processes.control_codec import CodecError, decode, encode
+from rescuemesh.checks.control_fuzz import fuzz, pickle_call
 
 KEY = ControlKey(bytes(range(32)))
 OTHER_KEY = ControlKey(bytes(range(1, 33)))
@@ -33,7 +33,7 @@ REQUEST, REPLY = 1, 2
 
 
 @pytest.mark.parametrize("module, name", [("rescuemesh.cli", "os.system"),
-                                          ("rescuemesh.runtime.spawn", "subprocess.Popen")])
+                                          ("rescuemesh.runtime.processes.spawn", "subprocess.Popen")])
 def test_the_pickle_payloads_of_issue_17_are_refused_by_the_decoder(tmp_path, module, name):
     # this used to run the command: the old decoder admitted any name under rescuemesh., and pickle
     # protocol 4 resolves rescuemesh.cli + os.system to os.system itself
@@ -155,8 +155,8 @@ def test_two_thousand_random_and_mutated_control_messages_none_accepted_no_untyp
 
 
 def test_the_brains_status_reaches_the_stand_in_as_it_changes():
-    from rescuemesh.runtime.remote import RemoteBrain, RemoteStack
-    from rescuemesh.runtime.robot_process import StatusTracker
+    from rescuemesh.runtime.processes.remote import RemoteBrain, RemoteStack
+    from rescuemesh.runtime.processes.robot_process import StatusTracker
 
     class Brain:  # what StatusTracker reads of a RobotBrain
         running, finished, outgoing, log, commands_failed = None, [], {}, BrainLog(), 0
@@ -223,7 +223,7 @@ class _ServerSession:
 
 
 def _server():
-    from rescuemesh.runtime.robot_process import RobotWorker
+    from rescuemesh.runtime.processes.robot_process import RobotWorker
 
     replies: list[bytes] = []
     server = CallServer(_ServerSession(replies), Keys("t"), "robot_1", KEY, RobotWorker("robot_1").handle)

@@ -10,7 +10,7 @@ import pytest
 from rescuemesh.geometry import Pose2D
 from rescuemesh.maps.grid import OccupancyGrid
 from rescuemesh.nav import Costmap, GoalStatus, NavigateToPose
-from rescuemesh.runtime.kinematic_body import MAX_LINEAR_SPEED, KinematicBody, empty_grid
+from rescuemesh.runtime.onboard.kinematic_body import MAX_LINEAR_SPEED, KinematicBody, empty_grid
 
 
 class Clock:

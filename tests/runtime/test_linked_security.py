@@ -23,8 +23,8 @@ from rescuemesh.mesh.frames import SEG_BIT
 from rescuemesh.mesh.keys import write_team_key
 from rescuemesh.mesh.security import FrameSealer
 from rescuemesh.protocol import FrameError
-from rescuemesh.runtime.boot_counter import BootCounter
-from rescuemesh.runtime.link_bench import free_port
+from rescuemesh.runtime.onboard.boot_counter import BootCounter
+from rescuemesh.checks.link_bench import free_port
 from rescuemesh.transport.zenoh_link import air_key, link_secret, open_session
 
 TEAM = f"sec{os.getpid()}"
@@ -43,7 +43,7 @@ def _listening(process: subprocess.Popen, port: int, timeout_s: float = 15.0) ->
 
 
 def _robot(name: str, key: Path, state: Path, *args: str) -> subprocess.Popen:
-    command = [sys.executable, "-m", "rescuemesh.runtime.linked_robot", "--name", name, "--team", TEAM,
+    command = [sys.executable, "-m", "rescuemesh.runtime.onboard.linked_robot", "--name", name, "--team", TEAM,
                "--key", str(key), "--state-dir", str(state), *args]
     return subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
 
@@ -162,7 +162,7 @@ def test_the_epoch_is_on_disk_before_the_robot_starts_and_a_bad_state_file_refus
     counter.close()
     assert BootCounter(state, TEAM, "robot_1").boot() == 6
     (state / TEAM / "robot_3.epoch").write_text("not a number\n")
-    run = subprocess.run([sys.executable, "-m", "rescuemesh.runtime.linked_robot", "--name", "robot_3",
+    run = subprocess.run([sys.executable, "-m", "rescuemesh.runtime.onboard.linked_robot", "--name", "robot_3",
                           "--team", TEAM, "--key", str(path), "--state-dir", str(state),
                           "--listen", f"tcp/127.0.0.1:{free_port()}", "--duration", "1"],
                          capture_output=True, text=True, timeout=60)
@@ -170,7 +170,7 @@ def test_the_epoch_is_on_disk_before_the_robot_starts_and_a_bad_state_file_refus
     assert run.stderr.count("\n") == 1 and "robot_3.epoch" in run.stderr and "Traceback" not in run.stderr
     blocked = tmp_path / "file"
     blocked.write_text("")  # a state folder that cannot be made
-    run = subprocess.run([sys.executable, "-m", "rescuemesh.runtime.linked_robot", "--name", "robot_3",
+    run = subprocess.run([sys.executable, "-m", "rescuemesh.runtime.onboard.linked_robot", "--name", "robot_3",
                           "--team", TEAM, "--key", str(path), "--state-dir", str(blocked / "s"),
                           "--listen", f"tcp/127.0.0.1:{free_port()}", "--duration", "1"],
                          capture_output=True, text=True, timeout=60)

@@ -2,7 +2,7 @@
 
 import pytest
 
-from rescuemesh.runtime.mesh_bench import chain_confirm_latency, delivery_ratio
+from rescuemesh.checks.mesh_bench import chain_confirm_latency, delivery_ratio
 
 
 def test_confirm_latency_grows_with_the_hops_of_the_chain():

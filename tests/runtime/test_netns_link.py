@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pytest
 
-from rescuemesh.runtime.linked_robot import main as robot_main
+from rescuemesh.runtime.onboard.linked_robot import main as robot_main
 
 LOSS = 0.2
 SUBNET = "10.231.0"
@@ -57,7 +57,7 @@ def test_bad_arguments_are_one_line_and_exit_2(argv, words):
 
 
 def test_bad_arguments_from_the_command_line_print_no_traceback():
-    run = subprocess.run([sys.executable, "-m", "rescuemesh.runtime.linked_robot", "--name", "robot_x"],
+    run = subprocess.run([sys.executable, "-m", "rescuemesh.runtime.onboard.linked_robot", "--name", "robot_x"],
                          capture_output=True, text=True, timeout=60)
     assert run.returncode == 2
     assert run.stderr.count("\n") == 1 and "Traceback" not in run.stderr, run.stderr
@@ -150,7 +150,7 @@ class LossyLink:
 def _robot(ns: str, name: str, args: list[str], folder: Path) -> tuple[subprocess.Popen, Path]:
     report = folder / f"{name}.json"
     log = open(folder / f"{name}.log", "w")
-    command = ["ip", "netns", "exec", ns, sys.executable, "-m", "rescuemesh.runtime.linked_robot", "--name", name,
+    command = ["ip", "netns", "exec", ns, sys.executable, "-m", "rescuemesh.runtime.onboard.linked_robot", "--name", name,
                "--duration", "30", "--exit-when-done", "--json-out", str(report), *args]
     return subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT), report
 

@@ -9,7 +9,7 @@ from dataclasses import replace
 from rescuemesh.maps import load_map, office_map_path
 from rescuemesh.robot import robot_address
 from rescuemesh.robot.records import power_on_s
-from rescuemesh.runtime.sim_loop import SimRuntime
+from rescuemesh.runtime.inprocess.sim_loop import SimRuntime
 from rescuemesh.scenarios import ScenarioOptions
 from rescuemesh.scenarios.convoy import ConvoyScenario
 from rescuemesh.scenarios.follow import FollowScenario

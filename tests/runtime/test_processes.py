@@ -17,10 +17,10 @@ import pytest
 
 from rescuemesh.maps import load_map, office_map_path
 from rescuemesh.protocol import ResultCode
-from rescuemesh.runtime.control import Keys
-from rescuemesh.runtime.process_world import ProcessRuntime, WorldHost
-from rescuemesh.runtime.spawn import RobotProcesses, free_endpoint
-from rescuemesh.runtime.remote import RobotGone
+from rescuemesh.runtime.processes.control import Keys
+from rescuemesh.runtime.processes.process_world import ProcessRuntime, WorldHost
+from rescuemesh.runtime.processes.spawn import RobotProcesses, free_endpoint
+from rescuemesh.runtime.processes.remote import RobotGone
 from rescuemesh.scenarios import ScenarioOptions
 from rescuemesh.scenarios.base import CommandRequest
 from rescuemesh.scenarios.follow import FollowScenario

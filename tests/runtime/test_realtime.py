@@ -12,8 +12,8 @@ import pytest
 from rescuemesh.geometry import Pose2D
 from rescuemesh.protocol import ResultCode
 from rescuemesh.runtime.config import SimConfig
-from rescuemesh.runtime.linked_robot import EXIT_LINGER_S, ExitWhenDone, Mission, build_robot
-from rescuemesh.runtime.realtime import MAX_FRAMES_PER_WAKE, RealtimeLoop
+from rescuemesh.runtime.onboard.linked_robot import EXIT_LINGER_S, ExitWhenDone, Mission, build_robot
+from rescuemesh.runtime.onboard.realtime import MAX_FRAMES_PER_WAKE, RealtimeLoop
 
 LATENCY_S = 0.001
 PEER_PHASE_S = 0.025  # robot_1 ticks half a control step after robot_2

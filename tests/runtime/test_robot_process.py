@@ -10,8 +10,8 @@ from rescuemesh.maps import load_map, office_map_path
 from rescuemesh.nav import Costmap, NavigateToPose
 from rescuemesh.protocol import DataKind, ResultCode
 from rescuemesh.robot import BrainEvent
-from rescuemesh.runtime import control_messages as msg
-from rescuemesh.runtime.control_codec import CodecError, decode, encode
+from rescuemesh.runtime.processes import control_messages as msg
+from rescuemesh.runtime.processes.control_codec import CodecError, decode, encode
 
 
 @pytest.mark.parametrize("value", [

@@ -1,4 +1,4 @@
-"""The ROS body flags of `rescuemesh robot` (runtime/ros_options.py): what reaches Ros1Body and Ros2Body,
+"""The ROS body flags of `rescuemesh robot` (runtime/ros/ros_options.py): what reaches Ros1Body and Ros2Body,
 and bad flags as one-line usage errors. No ROS needed: the bodies are not built here."""
 
 import io
@@ -6,8 +6,8 @@ import io
 import pytest
 
 from rescuemesh.geometry import Pose2D
-from rescuemesh.runtime.linked_robot import UsageError, build_parser, main
-from rescuemesh.runtime.ros_options import (_limits, map_frame_warning, ros1_body_kwargs, ros2_body_kwargs,
+from rescuemesh.runtime.onboard.linked_robot import UsageError, build_parser, main
+from rescuemesh.runtime.ros.ros_options import (_limits, map_frame_warning, ros1_body_kwargs, ros2_body_kwargs,
                                             ros_body_options, split_ros_args)
 
 BASE = ["--name", "robot_2", "--listen", "tcp/127.0.0.1:7447"]

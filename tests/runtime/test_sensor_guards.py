@@ -9,7 +9,7 @@ from types import SimpleNamespace as NS
 import pytest
 
 from rescuemesh.geometry import Pose2D
-from rescuemesh.runtime.ros1_body import laser_scan_from_msg, odometry_from_msg
+from rescuemesh.runtime.ros.ros1_body import laser_scan_from_msg, odometry_from_msg
 
 
 def odometry(x=1.0, y=2.0, qz=0.0, qw=1.0, v=0.2, w=0.1):
@@ -56,7 +56,7 @@ def test_a_ros2_body_refuses_odometry_a_pose_and_a_scan_that_are_not_finite():
     # use the same conversions as ROS 1's and warn (callbacks called on a stand-in, without rclpy)
     import threading
 
-    from rescuemesh.runtime.ros2_body import Ros2Body
+    from rescuemesh.runtime.ros.ros2_body import Ros2Body
 
     warnings = []
     body = NS(_warn=warnings.append, resolved={"odom": "/r/odom", "pose": "/r/pose", "scan": "/r/scan"},

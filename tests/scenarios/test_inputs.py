@@ -63,7 +63,7 @@ def test_map_starts_goals_and_bases_are_used(tmp_path):
 
 
 def test_return_goes_to_the_base_the_map_names(tmp_path):
-    from rescuemesh.runtime.sim_loop import SimRuntime
+    from rescuemesh.runtime.inprocess.sim_loop import SimRuntime
 
     lab = ros_map_with(tmp_path, "bases:\n  robot_2: [1.2, 1.0, 0]\n")
     starts = {"robot_1": Pose2D(2.5, 2.5, 0.0), "robot_2": Pose2D(1.2, 2.5, 0.0), "robot_3": Pose2D(1.0, 4.3, 0.0)}

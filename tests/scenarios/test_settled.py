@@ -7,7 +7,7 @@ from types import SimpleNamespace
 import pytest
 
 from rescuemesh.geometry import Pose2D
-from rescuemesh.runtime.sim_loop import TrajectorySample
+from rescuemesh.runtime.inprocess.sim_loop import TrajectorySample
 from rescuemesh.scenarios.base import SETTLE_S, SETTLED_SPEED, settled
 
 DT = 0.05

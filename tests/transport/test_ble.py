@@ -23,13 +23,14 @@ from bumble.transport.common import AsyncPipeSink  # noqa: E402
 import rescuemesh.transport.ble as ble  # noqa: E402
 from rescuemesh.mesh import NetworkStack  # noqa: E402
 from rescuemesh.protocol import Endpoint, EndpointConfig, ReliabilityConfig  # noqa: E402
-from rescuemesh.runtime.ble_check import (  # noqa: E402
+from rescuemesh.checks.ble_check import (  # noqa: E402
     BLE_ACK_TIMEOUT_S,
     default_stack,
     main_ble_check,
     run_ble_check,
 )
-from rescuemesh.runtime.ble_measure import Cause, FrameLog, percentile  # noqa: E402
+from rescuemesh.checks.ble_measure import FrameLog, percentile  # noqa: E402
+from rescuemesh.transport.asyncio_pump import Cause  # noqa: E402
 from rescuemesh.transport.ble import (  # noqa: E402
     MAX_FRAME_BYTES,
     BleBearer,
@@ -504,7 +505,7 @@ def test_ble_check_frames_are_authenticated_a_robot_with_another_key_is_never_he
     from rescuemesh.mesh import MeshConfig, MeshNode, NetworkStack
     from rescuemesh.mesh.keys import team_key_from_seed
     from rescuemesh.mesh.security import FrameSealer
-    from rescuemesh.runtime.ble_check import default_stack
+    from rescuemesh.checks.ble_check import default_stack
 
     def make_stack(address):
         if address != 3:

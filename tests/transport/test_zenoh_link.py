@@ -14,9 +14,9 @@ import zenoh
 
 from rescuemesh.geometry import Pose2D
 from rescuemesh.runtime.config import SimConfig
-from rescuemesh.runtime.link_bench import free_port, zenoh_confirm_rtt
-from rescuemesh.runtime.linked_robot import build_robot
-from rescuemesh.runtime.realtime import RealtimeLoop, monotonic_from_zero
+from rescuemesh.checks.link_bench import free_port, zenoh_confirm_rtt
+from rescuemesh.runtime.onboard.linked_robot import build_robot
+from rescuemesh.runtime.onboard.realtime import RealtimeLoop, monotonic_from_zero
 from rescuemesh.transport.zenoh_link import (
     MAX_FRAME_BYTES,
     ZenohLink,

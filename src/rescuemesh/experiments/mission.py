@@ -26,7 +26,7 @@ from rescuemesh.runtime import RadioKind
 from rescuemesh.scenarios.base import CommandRequest, Scenario, ScenarioError, ScenarioOptions, Verdict, no_collisions
 
 if TYPE_CHECKING:
-    from rescuemesh.runtime.sim_loop import SimRuntime
+    from rescuemesh.runtime.inprocess.sim_loop import SimRuntime
 
 #: Commands whose ACCEPTED is their outcome (they report no progress and no final result).
 _ACCEPTED_IS_FINAL = frozenset({CommandType.FOLLOW, CommandType.STOP})

@@ -12,7 +12,7 @@ __all__ = ["RadioKind", "SimConfig", "SimRuntime", "TrajectorySample"]
 
 def __getattr__(name: str):
     if name in ("SimRuntime", "TrajectorySample"):
-        from rescuemesh.runtime import sim_loop
+        from rescuemesh.runtime.inprocess import sim_loop
 
         return getattr(sim_loop, name)
     raise AttributeError(f"module 'rescuemesh.runtime' has no attribute {name!r}")

@@ -21,7 +21,7 @@ from rescuemesh.robot import RobotBrain, robot_address
 from rescuemesh.runtime import RadioKind, SimConfig
 
 if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJoCo
-    from rescuemesh.runtime.sim_loop import SimRuntime, TrajectorySample
+    from rescuemesh.runtime.inprocess.sim_loop import SimRuntime, TrajectorySample
 
 ROBOTS = ("robot_1", "robot_2", "robot_3")
 #: Name of the packaged office map (rescuemesh/data/office.yaml): scenarios have default poses for it.

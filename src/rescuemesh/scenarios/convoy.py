@@ -33,7 +33,7 @@ from rescuemesh.scenarios.base import (CommandRequest, Scenario, ScenarioError, 
 from rescuemesh.scenarios.team import MAX_TEAM, PlacementError, place_behind, team_names
 
 if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJoCo
-    from rescuemesh.runtime.sim_loop import SimRuntime
+    from rescuemesh.runtime.inprocess.sim_loop import SimRuntime
 
 #: Team size without --robots.
 DEFAULT_TEAM = 6

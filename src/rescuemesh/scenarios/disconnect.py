@@ -16,7 +16,7 @@ from rescuemesh.scenarios.base import ScenarioError, Verdict, no_collisions
 from rescuemesh.scenarios.follow import FollowScenario
 
 if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJoCo
-    from rescuemesh.runtime.sim_loop import SimRuntime
+    from rescuemesh.runtime.inprocess.sim_loop import SimRuntime
 
 DEFAULT_OUTAGE_S = 3.0
 #: The outage starts once the follower moves at least this fast (m/s), at least this long (s)

@@ -14,7 +14,7 @@ from rescuemesh.scenarios.base import (CommandRequest, Scenario, ScenarioError, 
                                        last_result, mean_distance, no_collisions, settled, why_not)
 
 if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJoCo
-    from rescuemesh.runtime.sim_loop import SimRuntime
+    from rescuemesh.runtime.inprocess.sim_loop import SimRuntime
 
 #: On a map with no named regions, follow succeeds when the follower ends this close to the leader (m).
 FOLLOWER_END_DISTANCE_M = 2.0

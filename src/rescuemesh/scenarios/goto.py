@@ -14,7 +14,7 @@ from rescuemesh.protocol import ResultCode
 from rescuemesh.scenarios.base import CommandRequest, Scenario, ScenarioError, Verdict, no_collisions
 
 if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJoCo
-    from rescuemesh.runtime.sim_loop import SimRuntime
+    from rescuemesh.runtime.inprocess.sim_loop import SimRuntime
 
 #: Where robot_2 is sent on the office: room_south, east of its table, facing north.
 OFFICE_GOTO = Pose2D(12.6, 2.4, math.pi / 2)

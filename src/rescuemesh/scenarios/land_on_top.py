@@ -18,7 +18,7 @@ from rescuemesh.runtime import SimConfig
 from rescuemesh.scenarios.base import CommandRequest, Scenario, Verdict, no_collisions, settled
 
 if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJoCo
-    from rescuemesh.runtime.sim_loop import SimRuntime
+    from rescuemesh.runtime.inprocess.sim_loop import SimRuntime
 
 CARRIER, DRONE = "robot_2", "robot_4"
 #: The drone waits on the floor of the hall, 2.3 m from robot_2.

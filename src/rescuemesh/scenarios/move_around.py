@@ -17,7 +17,7 @@ from rescuemesh.robot.behaviours import MoveAroundBehaviour
 from rescuemesh.scenarios.base import CommandRequest, Scenario, ScenarioError, Verdict, no_collisions
 
 if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJoCo
-    from rescuemesh.runtime.sim_loop import SimRuntime
+    from rescuemesh.runtime.inprocess.sim_loop import SimRuntime
 
 MAX_RMS_ERROR_M = 0.15
 MIN_ANGLE_DEG = 330.0

@@ -18,7 +18,7 @@ from rescuemesh.runtime import SimConfig
 from rescuemesh.scenarios.base import CommandRequest, Scenario, Verdict, no_collisions
 
 if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJoCo
-    from rescuemesh.runtime.sim_loop import SimRuntime
+    from rescuemesh.runtime.inprocess.sim_loop import SimRuntime
 
 RANKS = {1: Rank.TEAM_LEAD, 2: Rank.PEER, 3: Rank.PEER, 4: Rank.OPERATOR}
 #: The operator station stands in the hall's south-west corner (a robot that does not move).

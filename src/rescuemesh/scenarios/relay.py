@@ -20,7 +20,7 @@ from rescuemesh.robot import robot_address
 from rescuemesh.scenarios.base import CommandRequest, Scenario, ScenarioError, Verdict, no_collisions, settled
 
 if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJoCo
-    from rescuemesh.runtime.sim_loop import SimRuntime
+    from rescuemesh.runtime.inprocess.sim_loop import SimRuntime
 
 #: Office placements, for the validated radio model (issue 20; docs/radio.md): robot_1 in the
 #: north-west of the hall and robot_3 in the far corner of room_northeast hear each other with

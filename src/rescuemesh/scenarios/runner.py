@@ -1,13 +1,13 @@
-"""Run one scenario end to end: build the team, step until done or out of time, judge, report.
+"""Run one scenario end to end: the runtime builds the team and steps the episode (runtime/episode.py);
+this judges it and writes its results.
 
-Owns: the run loop around a scenario and its wall-clock timing. Must not know: argument parsing.
+Owns: a scenario's run from options to result.json and plots. Must not know: argument parsing.
 """
 
 from __future__ import annotations
 
 import time
 import os
-import tempfile
 from collections.abc import Callable
 from contextlib import ExitStack
 from dataclasses import dataclass
@@ -16,11 +16,9 @@ from pathlib import Path
 from rescuemesh.maps import load_map, office_map_path
 from rescuemesh.report import build_result, plot_timeline, plot_trajectories, write_result
 from rescuemesh.runtime import SimRuntime
-from rescuemesh.runtime.spawn import ProcessOptions
+from rescuemesh.runtime.episode import build_runtime, run_episode
+from rescuemesh.runtime.processes.spawn import ProcessOptions
 from rescuemesh.scenarios import Scenario, ScenarioError, ScenarioOptions, Verdict, get_scenario
-
-#: How often the progress callback is called, in simulated seconds.
-PROGRESS_PERIOD_S = 1.0
 
 
 @dataclass
@@ -61,25 +59,13 @@ def run_scenario(name: str | None, options: ScenarioOptions, *, map_path: Path |
         raise ScenarioError(f"scenario {name} does not run with --processes yet (these do: {able})")
     wall_start = time.perf_counter()
     with ExitStack() as cleanup:
-        rt = _runtime(scenario, map_model, config, processes, out_dir, cleanup)
+        log_dir = out_dir / "processes" if out_dir is not None else None
+        rt = build_runtime(map_model, scenario.starts(), config, processes, cleanup,
+                           team_key=scenario.options.team_key, log_dir=log_dir)
         setup_s = time.perf_counter() - wall_start  # world built, robots joined
         recorder = _recorder(rt, map_model, out_dir, live_port, cleanup, rosbag=rosbag)
-        next_report = 0.0
-        if progress:
-            progress(rt.time, scenario.limit_s)
-            next_report = PROGRESS_PERIOD_S
-        while rt.time < scenario.limit_s:
-            rt.step(scenario.tick)
-            if recorder is not None:
-                recorder.tick()
-            if progress and rt.time >= next_report:
-                progress(rt.time, scenario.limit_s)
-                next_report += PROGRESS_PERIOD_S
-            if scenario.finished(rt):
-                break
-            if realtime:
-                time.sleep(max(0.0, wall_start + rt.time - time.perf_counter()))
-        wall_s = time.perf_counter() - wall_start
+        wall_s = run_episode(scenario, rt, started_s=wall_start, observer=recorder, progress=progress,
+                             realtime=realtime)
         verdict, result = _judge(scenario, rt, wall_s, map_model)
         result["runtime"]["setup_s"] = round(setup_s, 3)
         files: list[Path] = []
@@ -94,34 +80,6 @@ def run_scenario(name: str | None, options: ScenarioOptions, *, map_path: Path |
             files.extend(scenario.write_files(rt, out_dir))
             files.append(recorder.finish())
     return RunOutcome(result, verdict, rt, files)
-
-
-def _runtime(scenario, map_model, config, processes: ProcessOptions | None, out_dir: Path | None, cleanup: ExitStack):
-    """The one-process runtime, or a world with its robots in processes (closed by `cleanup`)."""
-    if processes is None:
-        return SimRuntime(map_model, scenario.starts(), config)
-    from rescuemesh.runtime.process_world import ProcessRuntime, WorldHost, world_control_key
-    from rescuemesh.runtime.spawn import RobotProcesses, free_endpoint
-
-    listen = processes.listen or free_endpoint()
-    team = processes.team
-    if processes.spawn and team is None:
-        log_dir = out_dir / "processes" if out_dir is not None else \
-            Path(cleanup.enter_context(tempfile.TemporaryDirectory()))
-        team = RobotProcesses(listen, processes.run_id, log_dir, key_file=processes.key_file)
-    control_key = world_control_key(scenario.options.team_key, team.control_key if processes.spawn else None)
-    host = WorldHost(listen, processes.run_id, control_key=control_key)
-    cleanup.callback(host.close)
-    starts = scenario.starts()
-    if processes.spawn:
-        cleanup.callback(team.close)
-        for name in starts:
-            if name not in team.procs:
-                team.start(name)
-    rt = ProcessRuntime(map_model, starts, config, host, key_from_seed=scenario.options.team_key is None,
-                        join_timeout_s=processes.join_timeout_s)
-    cleanup.callback(rt.close)
-    return rt
 
 
 def _recorder(rt, map_model, out_dir: Path | None, live_port: int | None, cleanup: ExitStack, *,

@@ -17,7 +17,7 @@ from rescuemesh.robot.sensor_codec import SensorDecodeError, decode_image, decod
 from rescuemesh.scenarios.base import CommandRequest, Scenario, ScenarioError, Verdict, no_collisions
 
 if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJoCo
-    from rescuemesh.runtime.sim_loop import SimRuntime
+    from rescuemesh.runtime.inprocess.sim_loop import SimRuntime
 
 #: In room_north, out of robot_2's sight from its start in the hall (the hall's east wall is between).
 OFFICE_TARGET = Pose2D(11.3, 7.6, 0.0)

@@ -36,7 +36,7 @@ from rescuemesh.scenarios.base import Verdict
 from rescuemesh.scenarios.follow import FollowScenario
 
 if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJoCo
-    from rescuemesh.runtime.sim_loop import SimRuntime
+    from rescuemesh.runtime.inprocess.sim_loop import SimRuntime
 
 #: The intruder's radio address on the simulated medium (not a robot; its frames claim others').
 INTRUDER_ADDRESS = 200

@@ -13,7 +13,7 @@ from rescuemesh.scenarios.base import CommandRequest, Verdict, no_collisions
 from rescuemesh.scenarios.follow import FollowScenario
 
 if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJoCo
-    from rescuemesh.runtime.sim_loop import SimRuntime
+    from rescuemesh.runtime.inprocess.sim_loop import SimRuntime
 
 #: Halted: odometry speed below this, in m/s.
 HALTED_SPEED = 0.02

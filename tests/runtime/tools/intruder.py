@@ -70,11 +70,11 @@ def world(endpoint: str, marker: str, name: str) -> None:
     token = s.liveliness().declare_token("rescuemesh/default/world/alive")
     time.sleep(3.0)  # the robot connects and joins
     payloads = [pickle_call("rescuemesh.cli", "os.system", f"touch {marker}"),
-                pickle_call("rescuemesh.runtime.spawn", "subprocess.Popen", marker), b"", b"\x00" * 100]
+                pickle_call("rescuemesh.runtime.processes.spawn", "subprocess.Popen", marker), b"", b"\x00" * 100]
     try:  # what a peer that read the source can send: typed requests sealed with the public key
-        from rescuemesh.runtime import control_messages as msg
-        from rescuemesh.runtime.control import PUBLIC_CONTROL_KEY, ControlKey
-        from rescuemesh.runtime.control_codec import encode
+        from rescuemesh.runtime.processes import control_messages as msg
+        from rescuemesh.runtime.processes.control import PUBLIC_CONTROL_KEY, ControlKey
+        from rescuemesh.runtime.processes.control_codec import encode
 
         public = ControlKey(PUBLIC_CONTROL_KEY)
         payloads += [public.seal(1, b"i" * 16, 1, name, encode(msg.Bye())),

@@ -21,8 +21,8 @@ from __future__ import annotations
 from collections import Counter, deque
 
 from rescuemesh.robot.records import BrainLog
-from rescuemesh.runtime import control_messages as msg
-from rescuemesh.runtime.control import ControlError
+from rescuemesh.runtime.processes import control_messages as msg
+from rescuemesh.runtime.processes.control import ControlError
 
 
 class RobotGone(ControlError):

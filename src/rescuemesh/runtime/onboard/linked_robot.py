@@ -1,7 +1,7 @@
 """One robot process on a real network: a KinematicBody, the robot's software, a ZenohLink, in real time.
-`python -m rescuemesh.runtime.linked_robot --name robot_2 --listen tcp/IP:PORT --connect tcp/IP:PORT`.
+`python -m rescuemesh.runtime.onboard.linked_robot --name robot_2 --listen tcp/IP:PORT --connect tcp/IP:PORT`.
 
-Owns: the process's arguments, its boot counter (runtime/boot_counter.py: the epoch, on disk before
+Owns: the process's arguments, its boot counter (runtime/onboard/boot_counter.py: the epoch, on disk before
 the first frame), a small mission (command a peer to Follow, drive to a goal), its JSON report.
 Must not know: MuJoCo, the simulated radio, what is inside a frame.
 """
@@ -25,10 +25,10 @@ from rescuemesh.maps.grid import OccupancyGrid
 from rescuemesh.protocol import EncodeError, ResultCode
 from rescuemesh.robot import RobotBrain, robot_address, robot_name
 from rescuemesh.runtime.assembly import assemble_robot, team_sealer
-from rescuemesh.runtime.boot_counter import BootCounter, BootCounterError, default_state_dir
+from rescuemesh.runtime.onboard.boot_counter import BootCounter, BootCounterError, default_state_dir
 from rescuemesh.runtime.config import SimConfig
-from rescuemesh.runtime.kinematic_body import KinematicBody, empty_grid
-from rescuemesh.runtime.realtime import RealtimeLoop, monotonic_from_zero
+from rescuemesh.runtime.onboard.kinematic_body import KinematicBody, empty_grid
+from rescuemesh.runtime.onboard.realtime import RealtimeLoop, monotonic_from_zero
 from rescuemesh.transport.zenoh_link import ZenohLink, check_endpoint, check_team, link_secret
 
 #: The leader asks this many times (each one retried by the protocol) before giving the Follow up.
@@ -101,7 +101,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "process a ROS 2 node in namespace /ROBOT, with the SendCommand action (docs/ros2.md)")
     p.add_argument("--odometry-wait", type=float, default=10.0, metavar="S",
                    help="--body ros1/ros2: how long to wait for the first odometry (default 10 s)")
-    from rescuemesh.runtime.ros_options import add_ros_arguments
+    from rescuemesh.runtime.ros.ros_options import add_ros_arguments
 
     add_ros_arguments(p)  # topic names, pose source, laser mount, limits; then `--ros-args ...` for ros2
     return p
@@ -121,10 +121,10 @@ def parse_pose(text: str, what: str) -> Pose2D:
 def build_ros1_robot(options: dict):
     """A ROS 1 robot's body (its odometry, scan and cmd_vel topics), brain, stack and the paper's
     topics: (body, brain, stack, paper). Raises Ros1Unavailable or NoOdometryError (one line each)."""
-    from rescuemesh.runtime.ros1_body import Ros1Body, init_node
-    from rescuemesh.runtime.ros1_paper import Ros1Paper
+    from rescuemesh.runtime.ros.ros1_body import Ros1Body, init_node
+    from rescuemesh.runtime.ros.ros1_paper import Ros1Paper
 
-    from rescuemesh.runtime.ros_options import ros1_body_kwargs
+    from rescuemesh.runtime.ros.ros_options import ros1_body_kwargs
 
     name = options["name"]
     init_node(f"rescuemesh_{name}")
@@ -135,12 +135,12 @@ def build_ros1_robot(options: dict):
 
 
 def build_ros2_robot(options: dict):
-    """A ROS 2 robot: this process a ROS 2 node (runtime/ros2_body.py), its body, brain, stack and the
+    """A ROS 2 robot: this process a ROS 2 node (runtime/ros/ros2_body.py), its body, brain, stack and the
     paper's topics and action: (body, brain, stack, paper). Raises Ros2Unavailable, Ros2MsgsUnavailable
     or NoOdometryError (one line each); the node is closed again when it fails."""
-    from rescuemesh.runtime.ros2_body import Ros2Body, Ros2Node
-    from rescuemesh.runtime.ros2_paper import Ros2Paper
-    from rescuemesh.runtime.ros_options import ros2_body_kwargs
+    from rescuemesh.runtime.ros.ros2_body import Ros2Body, Ros2Node
+    from rescuemesh.runtime.ros.ros2_paper import Ros2Paper
+    from rescuemesh.runtime.ros.ros_options import ros2_body_kwargs
 
     name, grid = options["name"], _grid(options["grid"])
     ros = Ros2Node(name, namespace=options["ros"]["namespace"], ros_args=options["ros_args"])
@@ -325,7 +325,7 @@ def main(argv: Sequence[str] | None = None, *, out: TextIO | None = None, err: T
     out = out if out is not None else sys.stdout
     err = err if err is not None else sys.stderr
     try:
-        from rescuemesh.runtime.ros_options import split_ros_args
+        from rescuemesh.runtime.ros.ros_options import split_ros_args
 
         argv, ros_args = split_ros_args(sys.argv[1:] if argv is None else argv)
         options = _options(build_parser().parse_args(argv))
@@ -360,7 +360,7 @@ def _run(options: dict, counter: BootCounter, out: TextIO, err: TextIO, zenoh) -
         except (ImportError, RuntimeError) as exc:  # Ros1/2Unavailable, NoOdometryError: one line
             print(f"rescuemesh robot: error: {str(exc).splitlines()[0]}", file=err)
             return 2
-        from rescuemesh.runtime.ros_options import map_frame_warning
+        from rescuemesh.runtime.ros.ros_options import map_frame_warning
 
         warning = map_frame_warning(options["name"], options["ros"], getattr(body, "resolved", {}).get(
             "odom", getattr(getattr(body, "topics", None), "odom", "odom")))
@@ -373,7 +373,7 @@ def _run(options: dict, counter: BootCounter, out: TextIO, err: TextIO, zenoh) -
                                          options["epoch"])
     try:
         if options["link"] == "ble":
-            from rescuemesh.runtime.ble_link import BleLink
+            from rescuemesh.runtime.onboard.ble_link import BleLink
 
             link = BleLink.open(options["hci"], name=options["name"])
         else:
@@ -461,7 +461,7 @@ def _close_watchdog(name: str, err: TextIO) -> threading.Timer:
 
 
 def _options(args: argparse.Namespace) -> dict:
-    from rescuemesh.runtime.ros_options import ros_body_options
+    from rescuemesh.runtime.ros.ros_options import ros_body_options
 
     robot_address(args.name)  # ValueError: unknown robot
     for endpoint in args.listen + args.connect:

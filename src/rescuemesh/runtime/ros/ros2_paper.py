@@ -18,11 +18,11 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from rescuemesh.protocol import Confirm, MessageType, PoseUpdate, ResultCode
-from rescuemesh.runtime.ros1_paper import (FRAME_REQUIRED, LEADER_POSE, RECEIVED, REQUESTS, TYPE_NAME, EndpointTap,
+from rescuemesh.runtime.ros.ros1_paper import (FRAME_REQUIRED, LEADER_POSE, RECEIVED, REQUESTS, TYPE_NAME, EndpointTap,
                                            Request, RequestError, Traffic, _name, fill_command, fill_pose,
                                            parse_request)
-from rescuemesh.runtime.ros2_body import Ros2Node
-from rescuemesh.runtime.ros2_msgs import import_messages
+from rescuemesh.runtime.ros.ros2_body import Ros2Node
+from rescuemesh.runtime.ros.ros2_msgs import import_messages
 
 #: Results a command reports on its way (ResultCode's interim codes).
 INTERIM = frozenset({ResultCode.ACCEPTED, ResultCode.IN_PROGRESS})

@@ -3,8 +3,8 @@
 Owns: the key expressions, the Zenoh session settings (peer to peer, explicit endpoints, no
 multicast scouting), authenticated request/reply calls (the world publishes a request on a robot's
 request key, the robot answers on its reply key), liveliness tokens that tell each side the other is gone, and what a refused message costs: one
-log line and a count. Must not know: what the calls mean (runtime/robot_process.py and
-runtime/process_world.py do), how values are written (runtime/control_codec.py).
+log line and a count. Must not know: what the calls mean (runtime/processes/robot_process.py and
+runtime/processes/process_world.py do), how values are written (runtime/processes/control_codec.py).
 
 Every message is sealed: an HMAC-SHA256 tag (16 bytes) over a header (version, direction, the
 world's run nonce, a counter, the robot's name) and the body, under a key derived from the team key
@@ -34,8 +34,8 @@ from typing import Any
 import zenoh
 
 from rescuemesh.mesh.keys import hkdf_sha256
-from rescuemesh.runtime import control_messages as msg
-from rescuemesh.runtime.control_codec import MAX_MESSAGE_BYTES, CodecError, decode, encode
+from rescuemesh.runtime.processes import control_messages as msg
+from rescuemesh.runtime.processes.control_codec import MAX_MESSAGE_BYTES, CodecError, decode, encode
 from rescuemesh.transport.zenoh_link import check_endpoint, session_config
 
 __all__ = ["CALL_TIMEOUT_S", "CallClient", "CallServer", "ControlError", "ControlKey", "Keys", "Liveliness",

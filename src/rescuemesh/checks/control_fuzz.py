@@ -10,7 +10,7 @@ Two paths, each message through both:
 - body: the decoder alone (as if an attacker held the key): each message is refused with a
   CodecError or decodes to registered types only; any other exception is a finding.
 
-`python -m rescuemesh.runtime.control_fuzz --messages 100000` (make fuzz-control).
+`python -m rescuemesh.checks.control_fuzz --messages 100000` (make fuzz-control).
 """
 
 from __future__ import annotations
@@ -25,9 +25,9 @@ from dataclasses import dataclass
 import msgpack
 import numpy as np
 
-from rescuemesh.runtime import control_messages as msg
-from rescuemesh.runtime.control import ControlError, ControlKey
-from rescuemesh.runtime.control_codec import CodecError, decode, encode
+from rescuemesh.runtime.processes import control_messages as msg
+from rescuemesh.runtime.processes.control import ControlError, ControlKey
+from rescuemesh.runtime.processes.control_codec import CodecError, decode, encode
 
 
 @dataclass
@@ -83,7 +83,7 @@ def corpus() -> list[bytes]:
     bodies = [encode(v) for v in values]
     hostile = [
         pickle_call("rescuemesh.cli", "os.system", "touch /tmp/rescuemesh-pwned"),
-        pickle_call("rescuemesh.runtime.spawn", "subprocess.Popen", "true"),
+        pickle_call("rescuemesh.runtime.processes.spawn", "subprocess.Popen", "true"),
         msgpack.packb(msgpack.ExtType(2, msgpack.packb(["Popen", ["true"]]))),
         msgpack.packb(msgpack.ExtType(1, msgpack.packb(["|O", [1], b"\x00" * 8]))),
         msgpack.packb(msgpack.ExtType(1, msgpack.packb(["<f8", [1 << 40, 1 << 40], b""]))),
@@ -153,7 +153,7 @@ def fuzz(messages: int, seed: int = 0) -> FuzzCounts:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m rescuemesh.runtime.control_fuzz", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(prog="python -m rescuemesh.checks.control_fuzz", description=__doc__.split("\n")[0])
     parser.add_argument("--messages", type=int, default=100_000)
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)

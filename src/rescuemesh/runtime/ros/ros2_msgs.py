@@ -1,5 +1,5 @@
 """Build the ROS 2 interface package rescuemesh_msgs (the Command message, the SendCommand action) with
-rosidl, and find it: `python -m rescuemesh.runtime.ros2_msgs --prefix DIR` configures, builds and
+rosidl, and find it: `python -m rescuemesh.runtime.ros.ros2_msgs --prefix DIR` configures, builds and
 installs data/ros2/rescuemesh_msgs into DIR with CMake (what colcon does for one package).
 
 Owns: the build command and the import of the generated classes with a clear error. Must not know:
@@ -20,7 +20,7 @@ from pathlib import Path
 
 MSG_PACKAGE = "rescuemesh_msgs"
 
-BUILD_HINT = ("build it once into your ROS 2 environment: `python -m rescuemesh.runtime.ros2_msgs --prefix PREFIX` "
+BUILD_HINT = ("build it once into your ROS 2 environment: `python -m rescuemesh.runtime.ros.ros2_msgs --prefix PREFIX` "
               "(then source PREFIX/share/rescuemesh_msgs/local_setup.bash, or put PREFIX on AMENT_PREFIX_PATH, "
               "PREFIX/lib on LD_LIBRARY_PATH and PREFIX's site-packages on PYTHONPATH), or `colcon build` the "
               "package in a workspace (docs/ros2.md)")
@@ -80,7 +80,7 @@ def build(prefix: str | os.PathLike, *, jobs: int = 2, log=None) -> Path:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m rescuemesh.runtime.ros2_msgs",
+    parser = argparse.ArgumentParser(prog="python -m rescuemesh.runtime.ros.ros2_msgs",
                                      description=f"Build the ROS 2 interface package {MSG_PACKAGE} with rosidl "
                                                  "and install it into PREFIX (docs/ros2.md).")
     parser.add_argument("--prefix", required=True, help="install prefix (e.g. a virtualenv, or ~/rescuemesh_ws/install)")

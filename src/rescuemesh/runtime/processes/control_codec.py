@@ -5,7 +5,7 @@ arrays of a few dtypes, plain msgpack values), how each is written, and the chec
 passes before anything uses it: every dataclass field against its annotation, every array against
 the dtype allow-list and the size limits. Decoding constructs only registered types, through their
 own constructors (whose own checks run), and resolves no names. Must not know: Zenoh, what the
-calls mean, keys (runtime/control.py authenticates the bytes before they get here).
+calls mean, keys (runtime/processes/control.py authenticates the bytes before they get here).
 
 docs/processes.md lists the types and the wire form of each.
 """
@@ -55,7 +55,7 @@ def _registry() -> tuple[dict[str, type], dict[str, type]]:
     from rescuemesh.robot.policy import Rank
     from rescuemesh.robot.records import BrainConfig, BrainEvent, FinishedBehaviour, LinkLossPolicy, OutgoingCommand
     from rescuemesh.runtime.config import RadioKind, SimConfig
-    from rescuemesh.runtime import control_messages as c
+    from rescuemesh.runtime.processes import control_messages as c
 
     records = [Pose2D, LaserScan, OccupancyGrid, MeshConfig, NeighbourInfo, Transmission, MeshStats, EndpointStats,
                Waypoint, BrainConfig, BrainEvent, FinishedBehaviour, OutgoingCommand, SimConfig, m.Pose,

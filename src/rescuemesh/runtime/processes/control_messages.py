@@ -2,7 +2,7 @@
 the replies it gets back (docs/processes.md lists each with its fields).
 
 Owns: the message types and which reply answers which request. Must not know: Zenoh, the encoding
-(runtime/control_codec.py), keys, what a robot does with a request (runtime/robot_process.py).
+(runtime/processes/control_codec.py), keys, what a robot does with a request (runtime/processes/robot_process.py).
 
 There is no generic request: no attribute read, no method call by name. What scenarios and reports
 read of a robot travels as a typed status (StatusDelta) with every tick's reply; its counters at the

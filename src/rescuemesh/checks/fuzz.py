@@ -1,5 +1,5 @@
 """Forgery fuzzer for frame security: random bytes and mutated sealed frames into FrameSealer.open
-with the right key; none may be accepted. A command (`python -m rescuemesh.fuzz --frames N`),
+with the right key; none may be accepted. A command (`python -m rescuemesh.checks.fuzz --frames N`),
 not part of the sans-IO stack: it draws its own random numbers and reads a clock for its rate.
 """
 
@@ -227,7 +227,7 @@ def run_fuzz(
 def main(argv: list[str] | None = None) -> int:
     """Exit status 0: every frame rejected; 1: a frame accepted or an exception other than
     AuthenticationError; 2: the time bound stopped the run before `--frames`."""
-    parser = argparse.ArgumentParser(prog="python -m rescuemesh.fuzz", description=__doc__)
+    parser = argparse.ArgumentParser(prog="python -m rescuemesh.checks.fuzz", description=__doc__)
     parser.add_argument("--frames", type=int, default=100_000, help="frames to try (default 100000)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     parser.add_argument("--max-seconds", type=float, default=DEFAULT_MAX_SECONDS,

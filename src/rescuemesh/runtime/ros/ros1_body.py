@@ -18,7 +18,7 @@ import numpy as np
 
 from rescuemesh.body import LaserScan
 from rescuemesh.geometry import Pose2D, quaternion_to_yaw
-from rescuemesh.runtime.ros_body_common import NoOdometryError, RosBodyState
+from rescuemesh.runtime.ros.ros_body_common import NoOdometryError, RosBodyState
 
 __all__ = ["NoOdometryError", "Ros1Body", "Ros1Topics", "Ros1Unavailable"]  # NoOdometryError: its old home
 

@@ -59,7 +59,7 @@ def add_ros_arguments(p: argparse.ArgumentParser) -> None:
 
 def ros_body_options(args: argparse.Namespace, usage_error) -> dict:
     """The checked ROS flags as a dict (raises `usage_error(text)` for a bad one)."""
-    from rescuemesh.runtime.linked_robot import parse_pose  # the same X,Y[,YAW] reading as --start
+    from rescuemesh.runtime.onboard.linked_robot import parse_pose  # the same X,Y[,YAW] reading as --start
 
     laser = parse_pose(args.laser_mount, "--laser-mount")
     for flag, value in (("--max-linear-speed", args.max_linear_speed), ("--max-angular-speed", args.max_angular_speed)):
@@ -100,7 +100,7 @@ def _limits(ros: dict) -> dict:
 
 def ros1_body_kwargs(ros: dict) -> dict:
     """Ros1Body's keyword arguments (topics, laser_offset, limits) from the flags."""
-    from rescuemesh.runtime.ros1_body import Ros1Topics
+    from rescuemesh.runtime.ros.ros1_body import Ros1Topics
 
     default = Ros1Topics()
     topics = Ros1Topics(ros["odom_topic"] or default.odom, ros["scan_topic"] or default.scan,
@@ -110,7 +110,7 @@ def ros1_body_kwargs(ros: dict) -> dict:
 
 def ros2_body_kwargs(ros: dict) -> dict:
     """Ros2Body's keyword arguments (topics, laser_offset, limits) from the flags."""
-    from rescuemesh.runtime.ros2_body import Ros2Topics
+    from rescuemesh.runtime.ros.ros2_body import Ros2Topics
 
     default = Ros2Topics()
     topics = Ros2Topics(ros["odom_topic"] or default.odom, ros["scan_topic"] or default.scan,

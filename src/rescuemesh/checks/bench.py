@@ -23,7 +23,7 @@ from rescuemesh.protocol import MAX_CONTROL_FRAME_BYTES, MessageType
 from rescuemesh.protocol.bench import codec_roundtrip_rate
 from rescuemesh.mesh.security import seal_open_rate
 from rescuemesh.protocol.codec import max_frame_bytes
-from rescuemesh.runtime.mesh_bench import chain_confirm_latency, delivery_ratio
+from rescuemesh.checks.mesh_bench import chain_confirm_latency, delivery_ratio
 from rescuemesh.scenarios import ScenarioOptions
 from rescuemesh.scenarios.runner import run_scenario
 
@@ -114,8 +114,8 @@ def _process_figures(seed: int, one_process: dict) -> dict:
 
 def _link_figures() -> dict:
     """A command's round trip to its Confirm between two robot processes over Zenoh on loopback,
-    protocol, security and brains included, beside raw Zenoh ping-pong (runtime/link_bench.py)."""
-    from rescuemesh.runtime.link_bench import zenoh_confirm_rtt
+    protocol, security and brains included, beside raw Zenoh ping-pong (checks/link_bench.py)."""
+    from rescuemesh.checks.link_bench import zenoh_confirm_rtt
 
     figures = zenoh_confirm_rtt(1000)
     protocol, raw = figures["protocol"], figures["raw"]

@@ -1,8 +1,8 @@
 """What ble-check measures and reports: why a frame left a stack, each frame heard with its
 latency (matched to its send by bytes), percentiles, and the report with its summary lines.
 
-Owns: FrameLog, FrameSample, Cause, percentile, BleCheckReport. Must not know: bearers, asyncio,
-the check's script (runtime/ble_check.py runs it and fills the report).
+Owns: FrameLog, FrameSample, percentile, BleCheckReport. Must not know: bearers, asyncio,
+the check's script (checks/ble_check.py runs it and fills the report).
 """
 
 from __future__ import annotations
@@ -10,17 +10,8 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
-from enum import Enum
+from rescuemesh.transport.asyncio_pump import Cause
 from typing import Any
-
-
-class Cause(Enum):
-    """Why a frame left a stack: the application asked, a received frame was answered, or a timer
-    fired (for an Endpoint, a timer frame is always a resend)."""
-
-    APP = "app"
-    RECEIVE = "receive"
-    TIMER = "timer"
 
 
 # --- measurement -----------------------------------------------------------------------------------

@@ -1,7 +1,7 @@
 """One robot as its own process: brain, navigation, endpoint, mesh node and its Body, stepped by a
-world process in lockstep over the control plane (runtime/control.py).
+world process in lockstep over the control plane (runtime/processes/control.py).
 
-Owns: what a robot process answers to each typed request (runtime/control_messages.py: set-up, tick,
+Owns: what a robot process answers to each typed request (runtime/processes/control_messages.py: set-up, tick,
 flush, a frame heard, a timer, the mission's commands, report, stats, bye), the status it sends with
 every reply (what changed in its brain since the last one), the RemoteBody the world feeds, and the
 process's life: waiting for the world, halting and leaving when the world is gone.
@@ -28,9 +28,9 @@ from dataclasses import replace
 from rescuemesh.body import Body, LaserScan, NoRendererError, RobotKind
 from rescuemesh.geometry import Pose2D
 from rescuemesh.nav import Costmap
-from rescuemesh.runtime import control_messages as msg
+from rescuemesh.runtime.processes import control_messages as msg
 from rescuemesh.runtime.assembly import assemble_robot, team_sealer
-from rescuemesh.runtime.control import (
+from rescuemesh.runtime.processes.control import (
     CONTROL_KEY_ENV,
     PUBLIC_CONTROL_KEY,
     CallServer,
@@ -41,7 +41,7 @@ from rescuemesh.runtime.control import (
     control_key_from_team_key,
     open_session,
 )
-from rescuemesh.runtime.control_messages import BodyState, RobotSetup
+from rescuemesh.runtime.processes.control_messages import BodyState, RobotSetup
 
 __all__ = ["BodyState", "IDLE_TIMEOUT_S", "RemoteBody", "RobotSetup", "RobotWorker", "StatusTracker", "serve_robot"]
 

@@ -22,8 +22,8 @@ from collections.abc import Sequence
 from rescuemesh.geometry import Pose2D
 from rescuemesh.robot import robot_address
 from rescuemesh.runtime.config import SimConfig
-from rescuemesh.runtime.linked_robot import ZENOH_ACK_TIMEOUT_S, build_robot, team_link_secret
-from rescuemesh.runtime.realtime import RealtimeLoop, monotonic_from_zero
+from rescuemesh.runtime.onboard.linked_robot import ZENOH_ACK_TIMEOUT_S, build_robot, team_link_secret
+from rescuemesh.runtime.onboard.realtime import RealtimeLoop, monotonic_from_zero
 from rescuemesh.transport.zenoh_link import KEY_PREFIX, ZenohLink, session_config
 
 #: Round trips thrown away first (connections warming up, first-use code paths).
@@ -59,7 +59,7 @@ def zenoh_confirm_rtt(samples: int = 1000, *, raw_samples: int | None = None, ti
 
 def _protocol_rtt(samples: int, team: str, deadline: float, secure: bool, python: str) -> dict:
     port_1, port_2 = free_port(), free_port()
-    args = [python, "-m", "rescuemesh.runtime.linked_robot", "--name", "robot_2", "--team", team,
+    args = [python, "-m", "rescuemesh.runtime.onboard.linked_robot", "--name", "robot_2", "--team", team,
             "--listen", f"tcp/127.0.0.1:{port_2}", "--duration", f"{max(1.0, deadline - time.monotonic()):.1f}"]
     if not secure:
         args.append("--insecure")
@@ -107,7 +107,7 @@ def _raw_rtt(samples: int, team: str, deadline: float, python: str) -> dict:
     import zenoh
 
     port = free_port()
-    args = [python, "-m", "rescuemesh.runtime.link_bench", "--echo", "--team", team,
+    args = [python, "-m", "rescuemesh.checks.link_bench", "--echo", "--team", team,
             "--listen", f"tcp/127.0.0.1:{port}", "--duration", f"{max(1.0, deadline - time.monotonic()):.1f}"]
     with _Helper(args) as helper:
         if not helper.listening(port, min(deadline, time.monotonic() + START_TIMEOUT_S)):
@@ -241,9 +241,9 @@ def _echo(team: str, listen: str, duration_s: float) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """`python -m rescuemesh.runtime.link_bench [--samples N]` prints the figures as JSON; `--echo`
+    """`python -m rescuemesh.checks.link_bench [--samples N]` prints the figures as JSON; `--echo`
     is the raw ping-pong's other end (used by the bench itself)."""
-    p = argparse.ArgumentParser(prog="python -m rescuemesh.runtime.link_bench")
+    p = argparse.ArgumentParser(prog="python -m rescuemesh.checks.link_bench")
     p.add_argument("--echo", action="store_true")
     p.add_argument("--team", default="bench")
     p.add_argument("--listen", default="tcp/127.0.0.1:7447")

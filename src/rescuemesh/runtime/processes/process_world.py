@@ -1,9 +1,9 @@
 """The world as its own process: physics, sensors and the radio medium here, each robot in its own
-process, stepped in lockstep over Zenoh (runtime/control.py).
+process, stepped in lockstep over Zenoh (runtime/processes/control.py).
 
 Owns: the world's Zenoh host (its endpoint, liveliness token, the robots' tokens, the published
 clock, its control key) and ProcessRuntime: SimRuntime's loop with robots that are stand-ins
-(runtime/remote.py), robots that join (proving the control key), die and join again.
+(runtime/processes/remote.py), robots that join (proving the control key), die and join again.
 Must not know: scenarios' scripts and criteria, plots, what a brain does inside.
 
 A tick at time t: the world steps to t, the medium delivers what is due (each frame heard is one call
@@ -31,8 +31,8 @@ from rescuemesh.geometry import Pose2D
 from rescuemesh.maps import MapModel
 from rescuemesh.robot import robot_address
 from rescuemesh.runtime.config import SimConfig
-from rescuemesh.runtime import control_messages as msg
-from rescuemesh.runtime.control import (
+from rescuemesh.runtime.processes import control_messages as msg
+from rescuemesh.runtime.processes.control import (
     PUBLIC_CONTROL_KEY,
     CallClient,
     ControlError,
@@ -42,9 +42,9 @@ from rescuemesh.runtime.control import (
     control_key_from_team_key,
     open_session,
 )
-from rescuemesh.runtime.control_messages import BodyState, RobotSetup
-from rescuemesh.runtime.remote import RemoteBrain, RemoteStack, RobotGone
-from rescuemesh.runtime.sim_loop import SimRuntime, _position_of
+from rescuemesh.runtime.processes.control_messages import BodyState, RobotSetup
+from rescuemesh.runtime.processes.remote import RemoteBrain, RemoteStack, RobotGone
+from rescuemesh.runtime.inprocess.sim_loop import SimRuntime, _position_of
 
 #: How long the world waits for its robots to join, in s.
 JOIN_TIMEOUT_S = 60.0
@@ -116,7 +116,7 @@ class WorldHost:
 
 class ProcessRuntime(SimRuntime):
     """SimRuntime with every robot in its own process. `rt.brains[name]` and `rt.stacks[name]` are
-    stand-ins that read from and call into the robot (runtime/remote.py)."""
+    stand-ins that read from and call into the robot (runtime/processes/remote.py)."""
 
     def __init__(self, map_model: MapModel, starts: dict[str, Pose2D], config: SimConfig, host: WorldHost, *,
                  key_from_seed: bool = True, join_timeout_s: float = JOIN_TIMEOUT_S) -> None:
@@ -205,7 +205,7 @@ class ProcessRuntime(SimRuntime):
             self.world.bodies[name].set_velocity(0.0, 0.0)
         self._lost_now.clear()
 
-    # --- calls, as runtime/remote.py's stand-ins make them -------------------------------------
+    # --- calls, as runtime/processes/remote.py's stand-ins make them -------------------------------------
 
     def check_live(self, robot: str) -> None:
         if robot not in self.live:

@@ -16,10 +16,10 @@ import threading
 from dataclasses import dataclass, replace
 
 from rescuemesh.geometry import Pose2D
-from rescuemesh.runtime.ros1_body import (ODOMETRY_WAIT_S, TURTLEBOT2_MAX_ANGULAR_SPEED, TURTLEBOT2_MAX_LINEAR_SPEED,
+from rescuemesh.runtime.ros.ros1_body import (ODOMETRY_WAIT_S, TURTLEBOT2_MAX_ANGULAR_SPEED, TURTLEBOT2_MAX_LINEAR_SPEED,
                                           TURTLEBOT2_RADIUS, compose, finite_pose_msg,
                                           laser_scan_from_msg, odometry_from_msg, pose_msg_to_pose2d)
-from rescuemesh.runtime.ros_body_common import RosBodyState
+from rescuemesh.runtime.ros.ros_body_common import RosBodyState
 
 ROS2_INSTALL_HINT = ("rclpy comes with ROS 2: install ROS 2 (Humble, Jazzy or Kilted: apt-get install "
                      "ros-DISTRO-ros-base), `source /opt/ros/DISTRO/setup.bash`, and run rescuemesh from a virtualenv "

@@ -51,7 +51,7 @@ class RobotProcesses:
                    "--run-id", self.run]
         if self.key_file is not None:
             command += ["--key", str(self.key_file)]
-        from rescuemesh.runtime.control import CONTROL_KEY_ENV
+        from rescuemesh.runtime.processes.control import CONTROL_KEY_ENV
 
         env = dict(os.environ)
         env.pop(CONTROL_KEY_ENV, None)

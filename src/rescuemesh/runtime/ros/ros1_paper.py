@@ -35,7 +35,7 @@ from rescuemesh.protocol import (CommandReceived, Confirm, ConfirmReceived, Land
 from rescuemesh.protocol.messages import COMMAND_TYPES, PROGRESS_UNKNOWN
 from rescuemesh.robot import robot_address, robot_name
 from rescuemesh.robot.records import to_wire_pose
-from rescuemesh.runtime.ros1_body import ROS1_INSTALL_HINT, Ros1Unavailable, import_rospy, quaternion_msg_to_yaw
+from rescuemesh.runtime.ros.ros1_body import ROS1_INSTALL_HINT, Ros1Unavailable, import_rospy, quaternion_msg_to_yaw
 
 MSG_PACKAGE = "rescuemesh_msgs"
 #: Environment variable naming the directory the generated classes are cached under.
@@ -361,8 +361,8 @@ class Ros1Paper:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """`python -m rescuemesh.runtime.ros1_paper`: generate the message classes, print their directory."""
-    parser = argparse.ArgumentParser(prog="python -m rescuemesh.runtime.ros1_paper",
+    """`python -m rescuemesh.runtime.ros.ros1_paper`: generate the message classes, print their directory."""
+    parser = argparse.ArgumentParser(prog="python -m rescuemesh.runtime.ros.ros1_paper",
                                      description="Generate rescuemesh_msgs for ROS 1 and print the directory to "
                                                  "put on PYTHONPATH (for rostopic and the robot).")
     parser.add_argument("--cache", help=f"cache directory (default: ${MSG_CACHE_ENV} or ~/.cache/rescuemesh/ros1_msgs)")
