@@ -13,9 +13,11 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 from rescuemesh.body import RobotKind
+from rescuemesh.experiments.mission_measures import MovedInto, compute
 from rescuemesh.experiments.mission_spec import (
-    At, CommandSpec, CommandType, Distance, Drive, EndsIn, EndsNear, Mission, MetricBound, NoCollision, OnLink,
-    OnNear, OnRegion, OnStep, Outage, PathLength, RobotModel, SendCommand, Step, StepData, StepResult, TimeTo, Wait)
+    At, CommandSpec, CommandType, Distance, Drive, EndMission, EndsIn, EndsNear, Mission, MetricBound, NoCollision,
+    OnLink, OnNear, OnRegion, OnSettled, OnSpeed, OnStep, Outage, PathLength, RobotModel, SendCommand, Step, StepData,
+    StepResult, TimeTo, Wait)
 from rescuemesh.geometry import Pose2D
 from rescuemesh.protocol import (Follow, ForwardMsg, Goto, LandOnTop, MoveAround, Pose, ResultCode, Return, ShowCam,
                                  ShowScan, Stop, encode_inner)
@@ -23,7 +25,9 @@ from rescuemesh.robot import robot_address
 from rescuemesh.robot.forwarding import FINAL_RESULTS  # results after which a command does no more
 from rescuemesh.robot.records import to_wire_pose
 from rescuemesh.runtime import RadioKind
-from rescuemesh.scenarios.base import CommandRequest, Scenario, ScenarioError, ScenarioOptions, Verdict, no_collisions
+from rescuemesh.robot.behaviours import MoveAroundBehaviour
+from rescuemesh.scenarios.base import (CommandRequest, Scenario, ScenarioError, ScenarioOptions, Verdict, no_collisions,
+                                       settled)
 
 if TYPE_CHECKING:
     from rescuemesh.runtime.inprocess.sim_loop import SimRuntime
@@ -31,7 +35,7 @@ if TYPE_CHECKING:
 #: Commands whose ACCEPTED is their outcome (they report no progress and no final result).
 _ACCEPTED_IS_FINAL = frozenset({CommandType.FOLLOW, CommandType.STOP})
 #: A mission has played out this long after its last step finished (reports still on the air land).
-SETTLE_S = 2.0
+SETTLE_S = 2.0  # the default of a mission's `end_after`
 #: How long a ShowScan/ShowCam step waits, after DONE, for data still on the way, in s.
 DATA_GRACE_S = 5.0
 
@@ -48,6 +52,19 @@ class StepState:
     results: dict[ResultCode, float] = field(default_factory=dict)  # each result seen -> first time, in s
     drive: object | None = None  # the Running a drive started
     was_heard: bool = False  # a `loses` trigger: its peer was heard at some point
+    # what the receiver did with a command step's command (its Running, the result it ended it with ->
+    # when), and the waypoints it planned for it (a MoveAround's: one row each, skipped ones last)
+    receiver_running: object | None = None
+    receiver_results: dict[ResultCode, float] = field(default_factory=dict)
+    waypoints: list[dict] = field(default_factory=list)
+    skipped: list[str] = field(default_factory=list)
+
+    def reports(self, result: ResultCode) -> int:
+        """How many reports with `result` the sender got for this step's command (every copy)."""
+        if self.request is None:
+            return 0
+        outgoing = self.request.brain.outgoing
+        return sum(outgoing[seq].reports.get(result, 0) for seq in self.request.seqs)
 
 
 class MissionScenario(Scenario):
@@ -67,7 +84,30 @@ class MissionScenario(Scenario):
         self._by_name = {s.step.name: s for s in self.states}
         self._configured = False
         self._all_done_s: float | None = None
+        self._end_now = False  # an `end` step has started
         super().__init__(options, map_model)
+
+    def state(self, step: str) -> StepState:
+        """What became of step `step` (for metrics)."""
+        return self._by_name[step]
+
+    def target_of(self, step: str, rt: SimRuntime) -> tuple[float, float, float]:
+        """Where step `step` sends a robot: its drive's or Goto's pose, or for a Return the receiver's
+        base (the team's `base`, else the map's, else where it started, as the runtime sets it)."""
+        action = self._by_name[step].step.action
+        if isinstance(action, Drive):
+            return action.pose
+        if isinstance(action, SendCommand):
+            command = action.command
+            if command.type is CommandType.GOTO:
+                return command.pose
+            if command.type is CommandType.RETURN:
+                robot = self.mission.team[action.receiver]
+                if robot.base is not None:
+                    return robot.base
+                base = self.map.bases.get(action.receiver, rt.trajectories[action.receiver][0].pose)
+                return (base.x, base.y, base.yaw)
+        raise ScenarioError(f"{self.mission.path}: step {step!r} sends no robot to a pose (a drive, goto or return)")
 
     @classmethod
     def options_for(cls, mission: Mission, seed: int = 0, **overrides) -> ScenarioOptions:
@@ -78,6 +118,10 @@ class MissionScenario(Scenario):
 
     def validate(self) -> None:
         regions = set(self.map.regions)
+        for metric in self.mission.metrics:
+            if isinstance(metric, MovedInto) and metric.region not in regions:
+                raise ScenarioError(f"{self.mission.path}: metric {metric.name!r}: map {self.map.name!r} has no "
+                                    f"region {metric.region!r}")
         for state in self.states:
             trigger = state.step.trigger
             if isinstance(trigger, OnRegion) and trigger.region not in regions:
@@ -120,18 +164,42 @@ class MissionScenario(Scenario):
             self._configured = True
         for state in self.states:
             if state.started_s is None:
-                armed = state.step.armed_by is None or self._by_name[state.step.armed_by].finished_s is not None
+                armed = (state.step.armed_by is None or self._by_name[state.step.armed_by].finished_s is not None) \
+                    and now >= state.step.not_before_s - 1e-9
                 if state.triggered_s is None and armed and self._fires(state, rt):
                     state.triggered_s = now
                 if state.triggered_s is not None and now >= state.triggered_s + state.step.after_s - 1e-9:
                     self._start(state, rt)
             if state.started_s is not None and state.finished_s is None:
                 self._poll(state, rt)
+            if state.request is not None and not state.receiver_results:
+                self._watch_receiver(state, rt)
         if self._all_done_s is None and all(s.finished_s is not None for s in self.states):
             self._all_done_s = now
 
     def finished(self, rt: SimRuntime) -> bool:
-        return self._all_done_s is not None and rt.time >= self._all_done_s + SETTLE_S
+        return self._end_now or (self._all_done_s is not None and rt.time >= self._all_done_s + self.mission.end_after_s)
+
+    def _watch_receiver(self, state: StepState, rt: SimRuntime) -> None:
+        """Note when the receiver runs this step's command (any copy) and the result it ends it with."""
+        action = state.step.action
+        brain = rt.brain(action.receiver)
+        running = brain.running
+        if running is not None and running.commander == robot_address(action.sender) and \
+                running.seq in state.request.seqs and running is not state.receiver_running:
+            state.receiver_running = running
+            if not state.waypoints and isinstance(running.behaviour, MoveAroundBehaviour):
+                from rescuemesh.scenarios.move_around import _waypoint_table
+
+                state.waypoints = _waypoint_table(running.behaviour)
+                state.skipped = [str(i) for i in dict.fromkeys(w.index for w in running.behaviour.skipped)]
+            return
+        ran = state.receiver_running
+        if ran is not None and running is not ran:
+            ended = next((f for f in reversed(brain.finished)
+                          if f.started_s == ran.started_s and f.name == ran.behaviour.name), None)
+            if ended is not None:
+                state.receiver_results[ended.result] = ended.ended_s
 
     def _fires(self, state: StepState, rt: SimRuntime) -> bool:
         trigger = state.step.trigger
@@ -139,7 +207,20 @@ class MissionScenario(Scenario):
             return rt.time >= trigger.time_s - 1e-9
         if isinstance(trigger, OnStep):
             other = self._by_name[trigger.step]
-            return other.finished_s is not None if trigger.result is None else trigger.result in other.results
+            if trigger.started:
+                return other.started_s is not None
+            if trigger.given_up:
+                return other.request is not None and other.request.given_up
+            if trigger.result is None:
+                return other.finished_s is not None
+            seen = other.receiver_results if trigger.at_receiver else other.results
+            return any(r in seen for r in trigger.results)
+        if isinstance(trigger, OnSpeed):
+            return rt.trajectories[trigger.robot][-1].speed >= trigger.at_least
+        if isinstance(trigger, OnSettled):
+            armed_by = self._by_name[state.step.armed_by] if state.step.armed_by is not None else None
+            since = max(armed_by.finished_s if armed_by is not None else 0.0, state.step.not_before_s)
+            return settled(rt, trigger.robot, since)
         if isinstance(trigger, OnRegion):
             pose = rt.trajectories[trigger.robot][-1].pose
             return self.map.region_of(pose.x, pose.y) == trigger.region
@@ -158,8 +239,11 @@ class MissionScenario(Scenario):
         state.started_s = now
         if isinstance(action, SendCommand):
             brain = rt.brain(action.sender)
-            state.request = CommandRequest(
-                brain, action.receiver, lambda peer, t, b=brain, c=action.command: b.send(peer, _message(c, b), t))
+            if action.command.type is CommandType.STOP:  # as a user's Stop: it also ends a pose stream to the peer
+                send = brain.command_stop
+            else:
+                send = (lambda peer, t, b=brain, c=action.command: b.send(peer, _message(c, b), t))
+            state.request = CommandRequest(brain, action.receiver, send)
             state.request.poll(now)
         elif isinstance(action, Drive):
             brain = rt.brain(action.robot)
@@ -167,6 +251,9 @@ class MissionScenario(Scenario):
             state.drive = brain.running
         elif isinstance(action, Outage):
             rt.set_radio(action.robot, False)
+        elif isinstance(action, EndMission):
+            self._end_now = True
+            state.finished_s = now
 
     def _poll(self, state: StepState, rt: SimRuntime) -> None:
         now, action = rt.time, state.step.action
@@ -187,8 +274,13 @@ class MissionScenario(Scenario):
             elif state.request.given_up:
                 state.finished_s = now
         elif isinstance(action, Drive):
-            if rt.brain(action.robot).running is not state.drive:
+            brain = rt.brain(action.robot)
+            if brain.running is not state.drive:
                 state.finished_s = now
+                ended = next((f for f in reversed(brain.finished) if f.started_s == state.drive.started_s
+                              and f.name == state.drive.behaviour.name), None) if state.drive is not None else None
+                if ended is not None:  # the drive's outcome: DONE when it arrived
+                    state.results.setdefault(ended.result, now)
         elif isinstance(action, Outage):
             if now >= state.started_s + action.seconds - 1e-9:
                 rt.set_radio(action.robot, True)
@@ -231,6 +323,8 @@ class MissionScenario(Scenario):
             elif isinstance(metric, PathLength):
                 samples = rt.trajectories[metric.robot]
                 values[metric.name] = round(sum(a.pose.distance_to(b.pose) for a, b in zip(samples, samples[1:])), 3)
+            else:  # the metrics over moments and windows (experiments/mission_measures.py)
+                values[metric.name] = compute(self, metric, rt, values)
         return values
 
     def evaluate(self, rt: SimRuntime) -> Verdict:
@@ -241,11 +335,12 @@ class MissionScenario(Scenario):
                 criteria.append(no_collisions(rt))
             elif isinstance(c, StepResult):
                 state = self._by_name[c.step]
-                seen = state.results.get(c.result)
+                seen = (state.receiver_results if c.at_receiver else state.results).get(c.result)
                 ok = seen is not None and (c.within_s is None or seen - state.started_s <= c.within_s)
                 when = "" if seen is None else f" at {seen:.1f} s"
                 within = "" if c.within_s is None else f" within {c.within_s:g} s"
-                criteria.append((f"step {c.step}: {c.result.name}{within}{when}", ok))
+                where = " at its receiver" if c.at_receiver else ""
+                criteria.append((f"step {c.step}: {c.result.name}{where}{within}{when}", ok))
             elif isinstance(c, StepData):
                 count = self._data_count(self._by_name[c.step], rt)
                 criteria.append((f"step {c.step}: at least {c.at_least} data items back ({count})", count >= c.at_least))

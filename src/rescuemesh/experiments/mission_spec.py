@@ -11,6 +11,9 @@ import enum
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from rescuemesh.experiments.mission_measures import KEYS as TIMED_METRIC_KEYS
+from rescuemesh.experiments.mission_measures import MODIFIERS as TIMED_METRIC_MODIFIERS
+from rescuemesh.experiments.mission_measures import TimedMetric, read_timed_metric
 from rescuemesh.experiments.yamlread import Reader, read_yaml
 from rescuemesh.protocol import ResultCode
 from rescuemesh.robot.policy import Rank
@@ -81,7 +84,12 @@ class Wait:
     seconds: float
 
 
-Action = SendCommand | Drive | Outage | Wait
+@dataclass(frozen=True)
+class EndMission:
+    """The mission ends in the control step this step starts."""
+
+
+Action = SendCommand | Drive | Outage | Wait | EndMission
 
 
 # --- triggers ---
@@ -94,7 +102,15 @@ class At:
 @dataclass(frozen=True)
 class OnStep:
     step: str
-    result: ResultCode | None  # None: when the step has finished
+    result: ResultCode | frozenset[ResultCode] | None  # None: when the step has finished; a set: any of them
+    started: bool = False  # when the step has started (result None)
+    given_up: bool = False  # when the mission gave the step's command up, unanswered (result None)
+    at_receiver: bool = False  # `result` as the receiver ended the command, not as its sender heard
+
+    @property
+    def results(self) -> frozenset[ResultCode]:
+        return frozenset() if self.result is None else \
+            frozenset({self.result}) if isinstance(self.result, ResultCode) else self.result
 
 
 @dataclass(frozen=True)
@@ -118,7 +134,18 @@ class OnLink:
     lost: bool  # True: `robot` stops hearing `peer`; False: hears it (again)
 
 
-Trigger = At | OnStep | OnRegion | OnNear | OnLink
+@dataclass(frozen=True)
+class OnSpeed:
+    robot: str
+    at_least: float  # m/s, the robot's odometry speed
+
+
+@dataclass(frozen=True)
+class OnSettled:
+    robot: str  # still (scenarios.base.settled) for SETTLE_S, counted from when the trigger is armed
+
+
+Trigger = At | OnStep | OnRegion | OnNear | OnLink | OnSpeed | OnSettled
 
 
 @dataclass(frozen=True)
@@ -128,6 +155,7 @@ class Step:
     after_s: float
     action: Action
     armed_by: str | None = None  # the trigger is checked only once this step has finished
+    not_before_s: float = 0.0  # ... and only from this simulated time on
 
 
 # --- criteria and metrics ---
@@ -137,6 +165,7 @@ class StepResult:
     step: str
     result: ResultCode
     within_s: float | None
+    at_receiver: bool = False  # the result the receiver ended the command with
 
 
 @dataclass(frozen=True)
@@ -193,7 +222,7 @@ class PathLength:
     robot: str
 
 
-Metric = Distance | TimeTo | PathLength
+Metric = Distance | TimeTo | PathLength | TimedMetric
 
 
 @dataclass(frozen=True)
@@ -225,6 +254,7 @@ class Mission:
     steps: tuple[Step, ...]
     criteria: tuple[Criterion, ...]
     metrics: tuple[Metric, ...] = field(default_factory=tuple)
+    end_after_s: float = 2.0  # the mission plays on this long after every step has finished
 
     @staticmethod
     def load(path: str | Path) -> "Mission":
@@ -236,7 +266,8 @@ class Mission:
 
 _TOP = {"mission": "its name", "summary": "one line on what it shows", "map": "office, or a map file",
         "time_limit": "simulated seconds", "settings": "loss, relay, radio, secure", "team": "the robots",
-        "steps": "the script", "criteria": "what success means", "metrics": "figures to report"}
+        "steps": "the script", "criteria": "what success means", "metrics": "figures to report",
+        "end_after": "s the mission plays on once every step has finished (default 2)"}
 _RESULTS = {r.name.lower(): r for r in ResultCode}
 
 
@@ -262,14 +293,17 @@ def load_mission(path: Path) -> Mission:
         for other in (step.trigger.step if isinstance(step.trigger, OnStep) else None, step.armed_by):
             if other is not None and other not in step_names:
                 raise r.fail(top["steps"], f"step {step.name!r} waits for step {other!r}, which does not exist")
-    metrics = tuple(_metric(r, item, names, step_names) for item in r.sequence(top["metrics"], "metrics")) \
-        if "metrics" in top else ()
+    metrics: list[Metric] = []
+    for item in r.sequence(top["metrics"], "metrics") if "metrics" in top else ():
+        metric = _metric(r, item, names, step_names, {m.name for m in metrics})
+        if any(m.name == metric.name for m in metrics):
+            raise r.fail(item, f"metrics: the name {metric.name!r} is used twice")
+        metrics.append(metric)
     metric_names = [m.name for m in metrics]
-    if len(set(metric_names)) != len(metric_names):
-        raise r.fail(top["metrics"], "metrics: a name is used twice")
     criteria = tuple(_criterion(r, item, names, step_names, set(metric_names))
                      for item in r.sequence(top["criteria"], "criteria"))
-    return Mission(name, path, summary, map_path, limit, settings, team, steps, criteria, metrics)
+    end_after = r.number(top["end_after"], "end_after", minimum=0.0) if "end_after" in top else 2.0
+    return Mission(name, path, summary, map_path, limit, settings, team, steps, criteria, tuple(metrics), end_after)
 
 
 def _settings(r: Reader, node) -> Settings:
@@ -315,6 +349,14 @@ def _robot(r: Reader, node, what: str, names: set[str]) -> str:
     return name
 
 
+def read_results(r: Reader, node, what: str) -> frozenset[ResultCode]:
+    """One result or a list of them (any of which will do)."""
+    import yaml
+
+    items = r.sequence(node, what) if isinstance(node, yaml.SequenceNode) else [node]
+    return frozenset(_result(r, item, what) for item in items)
+
+
 def _result(r: Reader, node, what: str) -> ResultCode:
     text = r.text(node, what).lower()
     if text not in _RESULTS:
@@ -357,8 +399,9 @@ _STEP_KEYS = {"name": "a name other steps and criteria use", "at": "simulated ti
               "on": "an event (docs/missions.md)", "after": "s to wait after the event",
               "after_step": "a step that must have finished before the trigger is checked",
               "command": "{from, to, type, ...}", "drive": "{robot, to: [X, Y, YAW]}",
-              "outage": "{robot, seconds}", "wait": "s"}
-_ACTIONS = ("command", "drive", "outage", "wait")
+              "outage": "{robot, seconds}", "wait": "s", "end": "true: the mission ends",
+              "not_before": "simulated s before which the trigger is not checked"}
+_ACTIONS = ("command", "drive", "outage", "wait", "end")
 
 
 def _steps(r: Reader, node, names: set[str]) -> tuple[Step, ...]:
@@ -377,13 +420,19 @@ def _steps(r: Reader, node, names: set[str]) -> tuple[Step, ...]:
         trigger = At(r.number(f["at"], f"{what}.at", minimum=0.0)) if "at" in f else _trigger(r, f["on"], what, names)
         after = r.number(f["after"], f"{what}.after", minimum=0.0) if "after" in f else 0.0
         armed_by = r.text(f["after_step"], f"{what}.after_step") if "after_step" in f else None
-        steps.append(Step(name, trigger, after, _action(r, actions[0], f[actions[0]], what, names), armed_by))
+        not_before = r.number(f["not_before"], f"{what}.not_before", minimum=0.0) if "not_before" in f else 0.0
+        steps.append(Step(name, trigger, after, _action(r, actions[0], f[actions[0]], what, names), armed_by,
+                          not_before))
     return tuple(steps)
 
 
 def _action(r: Reader, kind: str, node, what: str, names: set[str]) -> Action:
     if kind == "wait":
-        return Wait(r.number(node, f"{what}.wait", above=0.0))
+        return Wait(r.number(node, f"{what}.wait", minimum=0.0))
+    if kind == "end":
+        if not r.flag(node, f"{what}.end"):
+            raise r.fail(node, f"{what}: an end step is `end: true`")
+        return EndMission()
     if kind == "command":
         f = r.keys(node, f"{what}.command", dict(_COMMAND_KEYS, **{"from": "the sender", "to": "the receiver"}),
                    required=("from", "to", "type"))
@@ -410,7 +459,10 @@ def _command_from_fields(r: Reader, node, fields: dict, what: str, names: set[st
 
 _TRIGGER_KEYS = {"step": "a step's name", "result": "a result (accepted, in_progress, done, failed, ...)",
                  "robot": "a robot", "enters": "a region of the map", "within": "m", "of": "a robot or [X, Y]",
-                 "loses": "a robot it stops hearing", "hears": "a robot it hears (again)"}
+                 "loses": "a robot it stops hearing", "hears": "a robot it hears (again)",
+                 "started": "true: when the step starts", "given_up": "true: when its command is given up",
+                 "at_receiver": "true: `result` as the receiver ended the command",
+                 "speed_at_least": "m/s: the robot moves at least this fast", "settled": "true: the robot is still"}
 
 
 def _near(r: Reader, f: dict, what: str, names: set[str]):
@@ -423,13 +475,18 @@ def _near(r: Reader, f: dict, what: str, names: set[str]):
 def _trigger(r: Reader, node, what: str, names: set[str]) -> Trigger:
     f = r.keys(node, f"{what}.on", _TRIGGER_KEYS)
     if "step" in f:
-        if set(f) - {"step", "result"}:
-            raise r.fail(node, f"{what}.on: a step event takes `step` and optionally `result`")
-        return OnStep(r.text(f["step"], f"{what}.on.step"),
-                      _result(r, f["result"], f"{what}.on.result") if "result" in f else None)
+        return _step_event(r, node, f, what)
     if "robot" not in f:
         raise r.fail(node, f"{what}.on needs `step` or `robot`")
     robot = _robot(r, f["robot"], f"{what}.on.robot", names)
+    if "speed_at_least" in f or "settled" in f:
+        if len(f) != 2:
+            raise r.fail(node, f"{what}.on: speed_at_least and settled stand alone beside `robot`")
+        if "settled" in f:
+            if not r.flag(f["settled"], f"{what}.on.settled"):
+                raise r.fail(f["settled"], f"{what}.on: settled is `settled: true`")
+            return OnSettled(robot)
+        return OnSpeed(robot, r.number(f["speed_at_least"], f"{what}.on.speed_at_least", minimum=0.0))
     forms = [k for k in ("enters", "within", "loses", "hears") if k in f]
     if len(forms) != 1:
         raise r.fail(node, f"{what}.on: a robot event takes one of enters, within (with of), loses, hears")
@@ -444,10 +501,32 @@ def _trigger(r: Reader, node, what: str, names: set[str]) -> Trigger:
     return OnLink(robot, peer, lost=forms[0] == "loses")
 
 
+def _step_event(r: Reader, node, f: dict, what: str) -> OnStep:
+    """`{step: S}`, `{step: S, result: X or [X, ...] [, at_receiver: true]}`, `{step: S, started: true}`,
+    `{step: S, given_up: true}`."""
+    step = r.text(f["step"], f"{what}.on.step")
+    extra = set(f) - {"step"}
+    if extra - {"result", "at_receiver", "started", "given_up"}:
+        raise r.fail(node, f"{what}.on: a step event takes `result` (and `at_receiver`), `started` or `given_up`")
+    for flag in ("started", "given_up"):
+        if flag in f:
+            if extra != {flag} or not r.flag(f[flag], f"{what}.on.{flag}"):
+                raise r.fail(node, f"{what}.on: `{flag}: true` stands alone beside `step`")
+            return OnStep(step, None, started=flag == "started", given_up=flag == "given_up")
+    if "at_receiver" in f and "result" not in f:
+        raise r.fail(f["at_receiver"], f"{what}.on: at_receiver goes with `result`")
+    if "result" not in f:
+        return OnStep(step, None)
+    results = read_results(r, f["result"], f"{what}.on.result")
+    at_receiver = r.flag(f["at_receiver"], f"{what}.on.at_receiver") if "at_receiver" in f else False
+    return OnStep(step, next(iter(results)) if len(results) == 1 else results, at_receiver=at_receiver)
+
+
 _CRITERION_KEYS = {"step": "a command step", "result": "its result", "within": "s, or m with `of`",
                    "data": "how many data items it must bring back", "robot": "a robot",
                    "ends_in": "a region", "of": "a robot or [X, Y]", "no_collision": "true",
-                   "metric": "a metric's name", "min": "lowest allowed", "max": "highest allowed"}
+                   "metric": "a metric's name", "min": "lowest allowed", "max": "highest allowed",
+                   "at_receiver": "true: the result the receiver ended the command with"}
 
 
 def _criterion(r: Reader, node, names: set[str], steps: set[str], metrics: set[str]) -> Criterion:
@@ -473,7 +552,8 @@ def _criterion(r: Reader, node, names: set[str], steps: set[str], metrics: set[s
         if "result" not in f:
             raise r.fail(node, "a step criterion takes `result` (and optionally `within` s) or `data`")
         return StepResult(step, _result(r, f["result"], "result"),
-                          r.number(f["within"], "within", above=0.0) if "within" in f else None)
+                          r.number(f["within"], "within", above=0.0) if "within" in f else None,
+                          r.flag(f["at_receiver"], "at_receiver") if "at_receiver" in f else False)
     if "robot" in f:
         robot = _robot(r, f["robot"], "robot", names)
         if "ends_in" in f:
@@ -485,11 +565,19 @@ def _criterion(r: Reader, node, names: set[str], steps: set[str], metrics: set[s
     raise r.fail(node, "a criterion names a step, a robot, a metric or no_collision")
 
 
-def _metric(r: Reader, node, names: set[str], steps: set[str]) -> Metric:
+def _metric(r: Reader, node, names: set[str], steps: set[str], metrics: set[str]) -> Metric:
     f = r.keys(node, "a metric", {"name": "its name in result.json", "distance": "[ROBOT, ROBOT] at the end",
                                   "time_to": "{step, result}: s from the step's start",
-                                  "path_length": "a robot: m driven"}, required=("name",))
+                                  "path_length": "a robot: m driven", **TIMED_METRIC_KEYS}, required=("name",))
     name = r.text(f["name"], "metric name")
+    timed = read_timed_metric(r, node, f, name, names, steps, metrics)
+    if timed is not None:
+        if {"distance", "time_to", "path_length"} & set(f):
+            raise r.fail(node, f"metric {name!r}: one measure per metric")
+        return timed
+    stray = [k for k in f if k in TIMED_METRIC_MODIFIERS]
+    if stray:
+        raise r.fail(node, f"metric {name!r}: {stray[0]!r} does not apply to distance, time_to or path_length")
     if "distance" in f:
         items = r.sequence(f["distance"], "distance")
         if len(items) != 2:
@@ -503,4 +591,5 @@ def _metric(r: Reader, node, names: set[str], steps: set[str]) -> Metric:
         return TimeTo(name, step, _result(r, g["result"], "time_to.result"))
     if "path_length" in f:
         return PathLength(name, _robot(r, f["path_length"], "path_length", names))
-    raise r.fail(node, "a metric is one of distance, time_to, path_length")
+    raise r.fail(node, "a metric is one of distance, time_to, path_length, "
+                       + ", ".join(k for k in TIMED_METRIC_KEYS if k not in TIMED_METRIC_MODIFIERS))

@@ -439,6 +439,7 @@ class RobotBrain(LinkLossAndReports, SensorCommands):
         if sent is None or sent.peer != event.src:
             return
         sent.result, sent.reason = event.result, event.reason
+        sent.reports[event.result] = sent.reports.get(event.result, 0) + 1
         if sent.confirmed_s is None:
             sent.confirmed_s = event.now
         if event.solicited:

@@ -108,6 +108,7 @@ class OutgoingCommand:
     failed: bool = False
     confirmed_s: float | None = None
     automatic: bool = False
+    reports: dict[ResultCode, int] = field(default_factory=dict)  # Confirms received, by result
 
 
 @dataclass
