@@ -178,7 +178,9 @@ class MissionScenario(Scenario):
             self._all_done_s = now
 
     def finished(self, rt: SimRuntime) -> bool:
-        return self._end_now or (self._all_done_s is not None and rt.time >= self._all_done_s + self.mission.end_after_s)
+        if self._end_now:  # an `end` step started
+            return True
+        return self._all_done_s is not None and rt.time >= self._all_done_s + self.mission.end_after_s
 
     def _watch_receiver(self, state: StepState, rt: SimRuntime) -> None:
         """Note when the receiver runs this step's command (any copy) and the result it ends it with."""
