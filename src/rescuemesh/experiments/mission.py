@@ -28,6 +28,7 @@ from rescuemesh.runtime import RadioKind
 from rescuemesh.robot.behaviours import MoveAroundBehaviour
 from rescuemesh.scenarios.base import (CommandRequest, Scenario, ScenarioError, ScenarioOptions, Verdict, no_collisions,
                                        settled)
+from rescuemesh.scenarios.move_around import waypoint_table
 
 if TYPE_CHECKING:
     from rescuemesh.runtime.inprocess.sim_loop import SimRuntime
@@ -191,9 +192,7 @@ class MissionScenario(Scenario):
                 running.seq in state.request.seqs and running is not state.receiver_running:
             state.receiver_running = running
             if not state.waypoints and isinstance(running.behaviour, MoveAroundBehaviour):
-                from rescuemesh.scenarios.move_around import _waypoint_table
-
-                state.waypoints = _waypoint_table(running.behaviour)
+                state.waypoints = waypoint_table(running.behaviour)
                 state.skipped = [str(i) for i in dict.fromkeys(w.index for w in running.behaviour.skipped)]
             return
         ran = state.receiver_running

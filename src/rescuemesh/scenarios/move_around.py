@@ -67,7 +67,7 @@ class MoveAroundScenario(Scenario):
         if not self.waypoints and running is not None:
             behaviour = running.behaviour  # by name, not isinstance: with --processes it is a stand-in
             if behaviour.name == "move-around":
-                self.waypoints = _waypoint_table(behaviour)
+                self.waypoints = waypoint_table(behaviour)
 
     def _ended(self, rt: SimRuntime):
         """The end of the circle the confirmed command started (not of a copy given up and stopped)."""
@@ -120,7 +120,7 @@ class MoveAroundScenario(Scenario):
         return Verdict(all(ok for _, ok in criteria), criteria, metrics)
 
 
-def _waypoint_table(behaviour: MoveAroundBehaviour) -> list[dict]:
+def waypoint_table(behaviour: MoveAroundBehaviour) -> list[dict]:
     """The circle's waypoints in visiting order, each with its tangent heading as a quaternion."""
     skipped = {w.index for w in behaviour.skipped}
     rows = [{"index": w.index, "x": round(w.pose.x, 3), "y": round(w.pose.y, 3), "yaw": round(w.pose.yaw, 4),
