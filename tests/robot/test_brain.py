@@ -13,6 +13,7 @@ from rescuemesh.protocol import (Confirm, ConfirmReceived, Data, DataKind, Endpo
                                  encode_inner)
 from rescuemesh.protocol.codec import decode_frame
 from rescuemesh.robot import BrainConfig
+from rescuemesh.robot import events as ev
 from rescuemesh.robot.policy import Rank
 
 ONE, TWO = 1, 2
@@ -270,8 +271,8 @@ def test_a_long_inner_message_goes_segmented_both_ways():
     seq = team.brains["robot_1"].send(TWO, ForwardMsg(3, inner), 0.0)
     team.run(10.0)
     assert team.brains["robot_1"].outgoing[seq].result == ResultCode.DONE
-    received = [e for e in team.brains["robot_3"].log if e.kind == "data_received"]
-    assert received and "1536 B from robot_2" in received[0].detail
+    received = [e for e in team.brains["robot_3"].log if isinstance(e, ev.DataReceived)]
+    assert received and (received[0].size, received[0].src, received[0].data_kind) == (1536, TWO, DataKind.RAW)
     assert team.link.stats.segment_transmissions >= 2 * len(inner) // 16
 
 
@@ -305,8 +306,8 @@ def test_goto_reports_accepted_progress_and_done_at_the_goal():
     assert leader.outgoing[seq].result == ResultCode.DONE
     end = team.bodies["robot_2"].pose()
     assert end.distance_to(Pose2D(8.0, 9.0)) <= 0.15 and abs(end.yaw - 1.0) <= 0.3
-    kinds = [e.detail for e in leader.log if e.kind == "confirm"]
-    assert kinds[0].endswith("ACCEPTED") and any("IN_PROGRESS" in k for k in kinds) and kinds[-1].endswith("DONE")
+    results = [e.result for e in leader.log if isinstance(e, ev.Confirm) and e.seq == seq]
+    assert results[0] is ResultCode.ACCEPTED and ResultCode.IN_PROGRESS in results and results[-1] is ResultCode.DONE
 
 
 def test_return_drives_back_to_the_base():

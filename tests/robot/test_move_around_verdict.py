@@ -3,7 +3,7 @@
 import pytest
 
 from rescuemesh.geometry import Pose2D
-from rescuemesh.nav import GoalStatus
+from rescuemesh.nav import GoalStatus, NavReason
 from rescuemesh.nav.navigate import NavResult
 from rescuemesh.protocol import Reason, ResultCode
 from rescuemesh.robot.behaviours import MoveAroundBehaviour, circle_waypoints
@@ -20,7 +20,7 @@ class ScriptedNav:
         self.goal_id, self._next = self._next, self._next + 1
         reached = self.outcomes.pop(0)
         status = GoalStatus.SUCCEEDED if reached else GoalStatus.ABORTED
-        self._results.append(NavResult(self.goal_id, status, "reached" if reached else "stuck", now))
+        self._results.append(NavResult(self.goal_id, status, NavReason.REACHED if reached else NavReason.STUCK, now))
         return self.goal_id
 
     def step(self, now, pose, scan):
