@@ -62,11 +62,11 @@ def test_a_lost_follower_pauses_both_sides_and_after_the_reconnect_window_both_e
     far_away(team, "robot_2")
     cut = team.time
     team.run(3.0)
-    assert "link_lost" not in team.kinds("robot_1")  # 3 missed heartbeats + half a period: not yet
+    assert ev.LinkLost not in team.kinds("robot_1")  # 3 missed heartbeats + half a period: not yet
     team.run(1.5)
-    lost = [e.time_s for e in leader.log if e.kind == "link_lost"]
+    lost = [e.time_s for e in leader.log if isinstance(e, ev.LinkLost)]
     assert lost and 3.0 <= lost[0] - cut <= 4.6 and leader.streams[TWO].paused
-    assert [e for e in follower.log if e.kind == "link_lost"] and follower.running.behaviour.paused
+    assert [e for e in follower.log if isinstance(e, ev.LinkLost)] and follower.running.behaviour.paused
     assert team.bodies["robot_2"].command == (0.0, 0.0)  # the follower halts at once
     team.run(6.0)
     assert TWO not in leader.streams and leader.outgoing[follow].result == ResultCode.FAILED
@@ -88,7 +88,7 @@ def test_a_follower_heard_again_within_the_window_resumes():
     assert follower.running.behaviour.paused
     team.bodies["robot_2"].teleport(there)  # back within the 5 s window
     team.run(2.0)
-    assert "link_resumed" in team.kinds("robot_1") and "link_resumed" in team.kinds("robot_2")
+    assert ev.LinkResumed in team.kinds("robot_1") and ev.LinkResumed in team.kinds("robot_2")
     assert follower.behaviour == "follow" and not follower.running.behaviour.paused
     assert TWO in leader.streams and not leader.streams[TWO].paused
     assert leader.commands_failed == 0
@@ -140,7 +140,7 @@ def test_pose_update_from_a_robot_we_do_not_follow_is_denied():
     assert answers == [(TWO, seq, MessageType.POSE_UPDATE, ResultCode.DENIED, Reason.NOT_FOLLOWING)]
     # and nothing starts, on either side
     assert follower.behaviour == "idle" and follower.running is None
-    assert "behaviour_started" not in team.kinds("robot_2")
+    assert ev.BehaviourStarted not in team.kinds("robot_2")
     assert team.bodies["robot_2"].pose() == Pose2D(1.5, 6.0) and team.bodies["robot_2"].command == (0.0, 0.0)
     assert TWO not in leader.streams
 
@@ -151,7 +151,7 @@ def test_move_around_inside_a_wall_is_denied():
     seq = team.brains["robot_1"].send(TWO, MoveAround(Pose(3, 6, 0, 0), 20.0), 0.0)
     team.run(1.0)
     assert team.brains["robot_1"].outgoing[seq].result == ResultCode.DENIED
-    assert "command_denied" in team.kinds("robot_2")
+    assert ev.CommandDenied in team.kinds("robot_2")
 
 
 def test_garbage_frames_are_counted_and_dropped_without_crashing_the_robot():
@@ -177,7 +177,7 @@ def test_a_resent_command_is_not_executed_twice():
     follower.step(0.05)
     follower.endpoint.receive(frame, 0.06)
     follower.step(0.1)
-    starts = [e for e in follower.log if e.kind == "behaviour_started"]
+    starts = [e for e in follower.log if isinstance(e, ev.BehaviourStarted)]
     assert len(starts) == 1 and follower.endpoint.stats.duplicates == 1
     messages = [decode_frame(f)[1] for f in follower.endpoint.frames_to_send(0.1)]
     confirms = [m for m in messages if isinstance(m, Confirm)]
@@ -225,8 +225,8 @@ def test_forward_msg_is_delivered_to_the_target_and_the_sender_gets_done():
     team.run(3.0)
     sent = team.brains["robot_1"].outgoing[seq]
     assert (sent.result, sent.reason) == (ResultCode.DONE, Reason.NONE)
-    assert "stopped" in team.kinds("robot_3")  # the inner Stop reached robot_3, from robot_2
-    assert "forward_sent" in team.kinds("robot_2") and "forward_ended" in team.kinds("robot_2")
+    assert ev.Stopped in team.kinds("robot_3")  # the inner Stop reached robot_3, from robot_2
+    assert ev.ForwardSent in team.kinds("robot_2") and ev.ForwardEnded in team.kinds("robot_2")
 
 
 def test_a_forwarders_final_report_goes_out_in_copies_like_any_final_report():
@@ -246,11 +246,11 @@ def test_forward_msg_waits_for_an_unreachable_target_and_delivers_when_it_comes_
     seq = team.brains["robot_1"].send(TWO, ForwardMsg(3, encode_inner(Return())), 0.0)
     team.run(8.0)
     assert team.brains["robot_1"].outgoing[seq].result == ResultCode.ACCEPTED  # held, not sent
-    assert "forward_sent" not in team.kinds("robot_2")
+    assert ev.ForwardSent not in team.kinds("robot_2")
     team.bodies["robot_3"].teleport(Pose2D(17.0, 6.0))
     team.run(3.0)
     assert team.brains["robot_1"].outgoing[seq].result == ResultCode.DONE
-    assert "command_received" in team.kinds("robot_3")
+    assert ev.CommandReceived in team.kinds("robot_3")
 
 
 def test_forward_msg_to_a_target_never_reachable_fails_with_timeout_after_the_setting():

@@ -269,11 +269,11 @@ def test_a_pose_the_wire_cannot_carry_halts_the_leader_with_a_warning_and_no_exc
         loop.run(6.0)  # robot_1 is stepped on the same clock: nothing may raise
     assert r1.brain.pose_fault is not None and not r1.brain.streams
     assert r1.body._v == 0.0 and r1.body._w == 0.0  # halted
-    assert [e.kind for e in r1.brain.log].count("pose_fault") == 1  # reported once, not every step
+    assert [type(e) for e in r1.brain.log].count(ev.PoseFault) == 1  # reported once, not every step
     assert any("outside the wire's range" in record.getMessage() for record in caplog.records)
     r1.body._x = 10.0  # back in range: the fault clears
     loop.run(0.5)
-    assert r1.brain.pose_fault is None and "pose_fault_cleared" in [e.kind for e in r1.brain.log]
+    assert r1.brain.pose_fault is None and ev.PoseFaultCleared in [type(e) for e in r1.brain.log]
 
 
 def _received(i: int) -> ev.CommandReceived:
