@@ -5,7 +5,7 @@ from navworld import drive, fake_scan, room_with_door
 
 from rescuemesh.geometry import Pose2D, wrap_angle
 from rescuemesh.maps.grid import OccupancyGrid
-from rescuemesh.nav import Costmap, GoalStatus, NavigateToPose, NavParams, NavResult
+from rescuemesh.nav import Costmap, GoalStatus, NavigateToPose, NavParams, NavReason, NavResult
 
 DOOR_GOAL = Pose2D(5.0, 3.0, math.pi / 2)
 
@@ -33,7 +33,7 @@ def test_reaches_a_goal_through_the_doorway_exactly_once(room_costmap):
     assert nav.status is GoalStatus.SUCCEEDED
     assert run.pose.distance_to(DOOR_GOAL) <= 0.15
     assert abs(wrap_angle(run.pose.yaw - DOOR_GOAL.yaw)) <= 0.3
-    assert results(nav) == [NavResult(gid, GoalStatus.SUCCEEDED, "reached", run.last_step)]
+    assert results(nav) == [NavResult(gid, GoalStatus.SUCCEEDED, NavReason.REACHED, run.last_step)]
     assert drive(nav, run.pose, run.now, 1.0, until_done=False).commands == [(0.0, 0.0)] * 20
     assert nav.next_result() is None
 
@@ -57,7 +57,7 @@ def test_a_new_goal_preempts_the_running_one(room_costmap):
     run = drive(nav, Pose2D(1.0, 1.0, 0.0), 0.0, 2.0)
     second = nav.send_goal(Pose2D(1.0, 3.0, 0.0), run.now)
     assert second != first and nav.goal_id == second
-    assert results(nav) == [NavResult(first, GoalStatus.CANCELED, "preempted", run.now)]
+    assert results(nav) == [NavResult(first, GoalStatus.CANCELED, NavReason.PREEMPTED, run.now)]
     run = drive(nav, run.pose, run.now, 30.0)
     assert [(r.goal_id, r.status) for r in results(nav)] == [(second, GoalStatus.SUCCEEDED)]
 
@@ -110,7 +110,7 @@ def test_cancel_stops_and_reports_canceled(room_costmap):
     assert nav.status is GoalStatus.CANCELED
     assert nav.step(run.now, run.pose, None) == (0.0, 0.0)
     nav.cancel(run.now + 0.05)
-    assert results(nav) == [NavResult(gid, GoalStatus.CANCELED, "canceled", run.now)]
+    assert results(nav) == [NavResult(gid, GoalStatus.CANCELED, NavReason.CANCELED, run.now)]
 
 
 @pytest.mark.parametrize("goal", [Pose2D(5.0, 3.0), Pose2D(3.05, 0.5)], ids=["walled-off", "in-a-wall"])
@@ -122,7 +122,7 @@ def test_unreachable_goal_aborts_with_no_path(goal):
     gid = nav.send_goal(goal, 0.0)
     assert nav.step(0.0, Pose2D(1.0, 1.0), None) == (0.0, 0.0)
     assert nav.status is GoalStatus.ABORTED
-    assert results(nav) == [NavResult(gid, GoalStatus.ABORTED, "no path", 0.0)]
+    assert results(nav) == [NavResult(gid, GoalStatus.ABORTED, NavReason.NO_PATH, 0.0)]
 
 
 def test_stop_distance_stops_with_about_that_much_path_left(corridor_costmap):
@@ -162,7 +162,7 @@ def test_blocked_doorway_ends_stuck(room_costmap):
     nav = NavigateToPose(room_costmap, params=NavParams(stuck_timeout_s=3.0))
     gid = nav.send_goal(DOOR_GOAL, 0.0)
     run = drive(nav, Pose2D(1.0, 2.0, 0.0), 0.0, 20.0, discs=[blocker])
-    assert results(nav) == [NavResult(gid, GoalStatus.ABORTED, "stuck", run.last_step)]
+    assert results(nav) == [NavResult(gid, GoalStatus.ABORTED, NavReason.STUCK, run.last_step)]
     assert math.hypot(run.pose.x - 3.05, run.pose.y - 2.0) > 0.3 + 0.177
 
 

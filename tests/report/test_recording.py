@@ -11,8 +11,9 @@ import pytest
 from mcap.reader import make_reader
 
 from rescuemesh.maps import load_map, office_map_path
+from rescuemesh.protocol import Reason, ResultCode
 from rescuemesh.report.recording import SCAN_PERIOD_S, LiveServerError, RunRecorder, _behaviour, ns
-from rescuemesh.robot import BrainEvent
+from rescuemesh.robot.events import BehaviourEnded, BehaviourStarted
 from rescuemesh.runtime import SimRuntime
 from rescuemesh.scenarios import ScenarioOptions, get_scenario
 from rescuemesh.scenarios.runner import run_scenario
@@ -141,13 +142,15 @@ def test_log_lines_written_after_the_last_read_are_published_at_the_end(tmp_path
     assert len(times["/log"]) >= 3 and max(times["/log"]) <= ns(0.5)
 
 
-@pytest.mark.parametrize("kind, detail, expected", [
-    ("behaviour_started", "follow", ("started", "follow", "")),
-    ("behaviour_ended", "follow: FAILED link lost", ("ended", "follow", "FAILED")),
-    ("behaviour_ended", "navigate: DONE", ("ended", "navigate", "DONE")),
+@pytest.mark.parametrize("event, detail, expected", [
+    (BehaviourStarted(1.5, "robot_2", "follow"), "follow", ("started", "follow", "")),
+    (BehaviourEnded(1.5, "robot_2", "follow", ResultCode.FAILED, Reason.LINK_LOST, "link lost"),
+     "follow: FAILED link lost", ("ended", "follow", "FAILED")),
+    (BehaviourEnded(1.5, "robot_2", "navigate", ResultCode.DONE, Reason.NONE), "navigate: DONE",
+     ("ended", "navigate", "DONE")),
 ])
-def test_a_behaviour_line_is_decoded(kind, detail, expected):
-    decoded = _behaviour(BrainEvent(1.5, "robot_2", kind, detail))
+def test_a_behaviour_line_is_decoded(event, detail, expected):
+    decoded = _behaviour(event)
     assert (decoded["event"], decoded["behaviour"], decoded["result"]) == expected
     assert decoded["detail"] == detail and decoded["robot"] == "robot_2"
 

@@ -81,5 +81,6 @@ class Team:
                 brain.step(self.time)
             self.link.flush(self.time)
 
-    def kinds(self, name: str) -> list[str]:
-        return [e.kind for e in self.brains[name].log]
+    def kinds(self, name: str) -> list[type]:
+        """The types of the events in `name`'s log (robot/events.py), in order."""
+        return [type(e) for e in self.brains[name].log]

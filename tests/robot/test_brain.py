@@ -13,6 +13,7 @@ from rescuemesh.protocol import (Confirm, ConfirmReceived, Data, DataKind, Endpo
                                  encode_inner)
 from rescuemesh.protocol.codec import decode_frame
 from rescuemesh.robot import BrainConfig
+from rescuemesh.robot import events as ev
 from rescuemesh.robot.policy import Rank
 
 ONE, TWO = 1, 2
@@ -61,11 +62,11 @@ def test_a_lost_follower_pauses_both_sides_and_after_the_reconnect_window_both_e
     far_away(team, "robot_2")
     cut = team.time
     team.run(3.0)
-    assert "link_lost" not in team.kinds("robot_1")  # 3 missed heartbeats + half a period: not yet
+    assert ev.LinkLost not in team.kinds("robot_1")  # 3 missed heartbeats + half a period: not yet
     team.run(1.5)
-    lost = [e.time_s for e in leader.log if e.kind == "link_lost"]
+    lost = [e.time_s for e in leader.log if isinstance(e, ev.LinkLost)]
     assert lost and 3.0 <= lost[0] - cut <= 4.6 and leader.streams[TWO].paused
-    assert [e for e in follower.log if e.kind == "link_lost"] and follower.running.behaviour.paused
+    assert [e for e in follower.log if isinstance(e, ev.LinkLost)] and follower.running.behaviour.paused
     assert team.bodies["robot_2"].command == (0.0, 0.0)  # the follower halts at once
     team.run(6.0)
     assert TWO not in leader.streams and leader.outgoing[follow].result == ResultCode.FAILED
@@ -87,7 +88,7 @@ def test_a_follower_heard_again_within_the_window_resumes():
     assert follower.running.behaviour.paused
     team.bodies["robot_2"].teleport(there)  # back within the 5 s window
     team.run(2.0)
-    assert "link_resumed" in team.kinds("robot_1") and "link_resumed" in team.kinds("robot_2")
+    assert ev.LinkResumed in team.kinds("robot_1") and ev.LinkResumed in team.kinds("robot_2")
     assert follower.behaviour == "follow" and not follower.running.behaviour.paused
     assert TWO in leader.streams and not leader.streams[TWO].paused
     assert leader.commands_failed == 0
@@ -139,7 +140,7 @@ def test_pose_update_from_a_robot_we_do_not_follow_is_denied():
     assert answers == [(TWO, seq, MessageType.POSE_UPDATE, ResultCode.DENIED, Reason.NOT_FOLLOWING)]
     # and nothing starts, on either side
     assert follower.behaviour == "idle" and follower.running is None
-    assert "behaviour_started" not in team.kinds("robot_2")
+    assert ev.BehaviourStarted not in team.kinds("robot_2")
     assert team.bodies["robot_2"].pose() == Pose2D(1.5, 6.0) and team.bodies["robot_2"].command == (0.0, 0.0)
     assert TWO not in leader.streams
 
@@ -150,7 +151,7 @@ def test_move_around_inside_a_wall_is_denied():
     seq = team.brains["robot_1"].send(TWO, MoveAround(Pose(3, 6, 0, 0), 20.0), 0.0)
     team.run(1.0)
     assert team.brains["robot_1"].outgoing[seq].result == ResultCode.DENIED
-    assert "command_denied" in team.kinds("robot_2")
+    assert ev.CommandDenied in team.kinds("robot_2")
 
 
 def test_garbage_frames_are_counted_and_dropped_without_crashing_the_robot():
@@ -176,7 +177,7 @@ def test_a_resent_command_is_not_executed_twice():
     follower.step(0.05)
     follower.endpoint.receive(frame, 0.06)
     follower.step(0.1)
-    starts = [e for e in follower.log if e.kind == "behaviour_started"]
+    starts = [e for e in follower.log if isinstance(e, ev.BehaviourStarted)]
     assert len(starts) == 1 and follower.endpoint.stats.duplicates == 1
     messages = [decode_frame(f)[1] for f in follower.endpoint.frames_to_send(0.1)]
     confirms = [m for m in messages if isinstance(m, Confirm)]
@@ -224,8 +225,8 @@ def test_forward_msg_is_delivered_to_the_target_and_the_sender_gets_done():
     team.run(3.0)
     sent = team.brains["robot_1"].outgoing[seq]
     assert (sent.result, sent.reason) == (ResultCode.DONE, Reason.NONE)
-    assert "stopped" in team.kinds("robot_3")  # the inner Stop reached robot_3, from robot_2
-    assert "forward_sent" in team.kinds("robot_2") and "forward_ended" in team.kinds("robot_2")
+    assert ev.Stopped in team.kinds("robot_3")  # the inner Stop reached robot_3, from robot_2
+    assert ev.ForwardSent in team.kinds("robot_2") and ev.ForwardEnded in team.kinds("robot_2")
 
 
 def test_a_forwarders_final_report_goes_out_in_copies_like_any_final_report():
@@ -245,11 +246,11 @@ def test_forward_msg_waits_for_an_unreachable_target_and_delivers_when_it_comes_
     seq = team.brains["robot_1"].send(TWO, ForwardMsg(3, encode_inner(Return())), 0.0)
     team.run(8.0)
     assert team.brains["robot_1"].outgoing[seq].result == ResultCode.ACCEPTED  # held, not sent
-    assert "forward_sent" not in team.kinds("robot_2")
+    assert ev.ForwardSent not in team.kinds("robot_2")
     team.bodies["robot_3"].teleport(Pose2D(17.0, 6.0))
     team.run(3.0)
     assert team.brains["robot_1"].outgoing[seq].result == ResultCode.DONE
-    assert "command_received" in team.kinds("robot_3")
+    assert ev.CommandReceived in team.kinds("robot_3")
 
 
 def test_forward_msg_to_a_target_never_reachable_fails_with_timeout_after_the_setting():
@@ -270,8 +271,8 @@ def test_a_long_inner_message_goes_segmented_both_ways():
     seq = team.brains["robot_1"].send(TWO, ForwardMsg(3, inner), 0.0)
     team.run(10.0)
     assert team.brains["robot_1"].outgoing[seq].result == ResultCode.DONE
-    received = [e for e in team.brains["robot_3"].log if e.kind == "data_received"]
-    assert received and "1536 B from robot_2" in received[0].detail
+    received = [e for e in team.brains["robot_3"].log if isinstance(e, ev.DataReceived)]
+    assert received and (received[0].size, received[0].src, received[0].data_kind) == (1536, TWO, DataKind.RAW)
     assert team.link.stats.segment_transmissions >= 2 * len(inner) // 16
 
 
@@ -305,8 +306,8 @@ def test_goto_reports_accepted_progress_and_done_at_the_goal():
     assert leader.outgoing[seq].result == ResultCode.DONE
     end = team.bodies["robot_2"].pose()
     assert end.distance_to(Pose2D(8.0, 9.0)) <= 0.15 and abs(end.yaw - 1.0) <= 0.3
-    kinds = [e.detail for e in leader.log if e.kind == "confirm"]
-    assert kinds[0].endswith("ACCEPTED") and any("IN_PROGRESS" in k for k in kinds) and kinds[-1].endswith("DONE")
+    results = [e.result for e in leader.log if isinstance(e, ev.Confirm) and e.seq == seq]
+    assert results[0] is ResultCode.ACCEPTED and ResultCode.IN_PROGRESS in results and results[-1] is ResultCode.DONE
 
 
 def test_return_drives_back_to_the_base():

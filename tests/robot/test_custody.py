@@ -9,6 +9,7 @@ from team import Team
 from rescuemesh.geometry import Pose2D
 from rescuemesh.protocol import DataKind, ForwardMsg, Goto, LandOnTop, MessageType, Pose, Reason, ResultCode, ShowScan, encode_inner
 from rescuemesh.robot import BrainConfig
+from rescuemesh.robot import events as ev
 from rescuemesh.robot.custody import HeldReport, ReportCustody
 from rescuemesh.robot.records import LinkLossPolicy
 
@@ -38,14 +39,14 @@ def test_a_goto_out_of_the_commanders_reach_completes_and_the_commander_learns_d
     ended = driver.finished[-1]
     assert (ended.name, ended.result) == ("navigate", ResultCode.DONE)
     assert team.bodies["robot_2"].pose().distance_to(FAR_GOAL) <= 0.15
-    assert "link_lost" in team.kinds("robot_2") and "report_held" in team.kinds("robot_2")
+    assert ev.LinkLost in team.kinds("robot_2") and ev.ReportHeld in team.kinds("robot_2")
     assert commander.outgoing[seq].result != ResultCode.DONE  # every copy of DONE went into the void
     team.run(10.0)
     assert commander.outgoing[seq].result != ResultCode.DONE  # held while nobody can hear it
     team.bodies["robot_1"].teleport(Pose2D(6.0, 6.0))  # the commander comes back into reach
     team.run(4.0)
     assert (commander.outgoing[seq].result, commander.outgoing[seq].reason) == (ResultCode.DONE, Reason.NONE)
-    assert "report_delivered" in team.kinds("robot_2") and len(driver.custody) == 0
+    assert ev.ReportDelivered in team.kinds("robot_2") and len(driver.custody) == 0
 
 
 def test_hold_keeps_the_papers_rule_for_a_goto_when_asked():
@@ -115,7 +116,7 @@ def test_a_forwarded_show_scans_scans_reach_the_robot_that_asked():
     scans = [d for d in asker.received_data if d[2] == DataKind.LASER_SCAN]
     assert len(scans) == 2 and all(d[1] == TWO and d[3] == seq for d in scans)
     assert asker.outgoing[seq].result == ResultCode.DONE
-    assert "forward_data" in team.kinds("robot_2")
+    assert ev.ForwardData in team.kinds("robot_2")
 
 
 def test_custody_is_bounded_replaces_older_reports_and_expires():

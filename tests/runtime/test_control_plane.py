@@ -12,8 +12,9 @@ import pytest
 
 from rescuemesh.geometry import Pose2D
 from rescuemesh.maps import load_map, office_map_path
-from rescuemesh.protocol import ResultCode
-from rescuemesh.robot.records import BrainEvent, BrainLog, OutgoingCommand
+from rescuemesh.protocol import MessageType, ResultCode
+from rescuemesh.robot.events import CommandSent
+from rescuemesh.robot.records import BrainLog, OutgoingCommand
 from rescuemesh.runtime.processes import control_messages as msg
 from rescuemesh.runtime.processes.control import (
     PUBLIC_CONTROL_KEY,
@@ -167,7 +168,7 @@ def test_the_brains_status_reaches_the_stand_in_as_it_changes():
     stand_in = RemoteBrain(_Link(), "robot_1", 1, None, RemoteStack(_Link(), "robot_1", 1))
     brain.outgoing = {1: OutgoingCommand(1, 2, "Follow", 0.5)}
     brain.log = BrainLog()  # the brain's own log type (robot/records.py)
-    brain.log.append(BrainEvent(0.5, "robot_1", "command_sent", "Follow to robot_2"))
+    brain.log.append(CommandSent(0.5, "robot_1", MessageType.FOLLOW, 2, 1))
     stand_in.update(decode(encode(tracker.delta())))
     brain.outgoing[1].result = ResultCode.ACCEPTED
     delta = tracker.delta()

@@ -8,6 +8,7 @@ from dataclasses import replace
 
 from rescuemesh.maps import load_map, office_map_path
 from rescuemesh.robot import robot_address
+from rescuemesh.robot import events as ev
 from rescuemesh.robot.records import power_on_s
 from rescuemesh.runtime.inprocess.sim_loop import SimRuntime
 from rescuemesh.scenarios import ScenarioOptions
@@ -51,6 +52,6 @@ def test_the_30_robot_convoy_forms_its_first_links_without_giving_a_command_up()
     rt = SimRuntime(scenario.map, scenario.starts(), scenario.sim_config())
     while rt.time < 4.5:
         rt.step(scenario.tick)
-    given_up = [e for brain in rt.brains.values() for e in brain.log if e.kind == "command_given_up"]
+    given_up = [e for brain in rt.brains.values() for e in brain.log if isinstance(e, ev.CommandGivenUp)]
     assert not given_up, given_up
     assert scenario._links and scenario._links[0].confirmed() is not None  # robot_2 follows robot_1

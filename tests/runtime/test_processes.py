@@ -17,6 +17,7 @@ import pytest
 
 from rescuemesh.maps import load_map, office_map_path
 from rescuemesh.protocol import ResultCode
+from rescuemesh.robot import events as ev
 from rescuemesh.runtime.processes.control import Keys
 from rescuemesh.runtime.processes.process_world import ProcessRuntime, WorldHost
 from rescuemesh.runtime.processes.spawn import RobotProcesses, free_endpoint
@@ -145,11 +146,11 @@ def test_a_killed_robot_is_lost_its_follower_halts_and_it_rejoins_and_is_command
             rt.brain("robot_1").running
         # the follower hears no more PoseUpdates: it halts, then the mesh reports the link lost
         halted = _step_until(rt, lambda rt: _speed(rt, "robot_2") < 0.02, 5.0)
-        _step_until(rt, lambda rt: any(e.kind == "link_lost" for e in rt.brain("robot_2").log), 10.0)
+        _step_until(rt, lambda rt: any(isinstance(e, ev.LinkLost) for e in rt.brain("robot_2").log), 10.0)
         assert rt.world.bodies["robot_1"].command == (0.0, 0.0)  # a dead robot's wheels stop
         assert any("process lost" in what for _, name, what in rt.process_log if name == "robot_1")
 
-        lost_s = next(e.time_s for e in rt.brain("robot_2").log if e.kind == "link_lost") - killed_s
+        lost_s = next(e.time_s for e in rt.brain("robot_2").log if isinstance(e, ev.LinkLost)) - killed_s
         team.start("robot_1")  # again: a new process, the next boot epoch
         restarted, deadline, rejoined = time.monotonic(), time.monotonic() + 30.0, rt.time
         while "robot_1" not in rt.live and time.monotonic() < deadline:

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from rescuemesh.geometry import Pose2D
-from rescuemesh.protocol import ResultCode
+from rescuemesh.protocol import MessageType, ResultCode
+from rescuemesh.robot import events as ev
 from rescuemesh.runtime.config import SimConfig
 from rescuemesh.runtime.onboard.linked_robot import EXIT_LINGER_S, ExitWhenDone, Mission, build_robot
 from rescuemesh.runtime.onboard.realtime import MAX_FRAMES_PER_WAKE, RealtimeLoop
@@ -132,8 +133,8 @@ def pair(dt: float = 0.05):
     return clock, r1, r2, air, loop
 
 
-def confirm_time(brain, kind: str) -> float:
-    return next(e.time_s for e in brain.log if e.kind == "confirm" and e.detail.startswith(kind))
+def confirm_time(brain, command: MessageType) -> float:
+    return next(e.time_s for e in brain.log if isinstance(e, ev.Confirm) and e.command is command)
 
 
 def test_a_command_is_confirmed_on_arrival_not_at_the_next_tick():
@@ -144,7 +145,7 @@ def test_a_command_is_confirmed_on_arrival_not_at_the_next_tick():
     loop.run(0.3)
     assert r1.brain.outgoing[seqs[0]].result == ResultCode.ACCEPTED
     # Follow reaches robot_2 at +1 ms; its Confirm leaves at once and reaches robot_1 at +2 ms
-    assert confirm_time(r1.brain, "Follow") == pytest.approx(sent_at + 2 * LATENCY_S, abs=1e-3)
+    assert confirm_time(r1.brain, MessageType.FOLLOW) == pytest.approx(sent_at + 2 * LATENCY_S, abs=1e-3)
     assert loop.stats.arrival_steps >= 1
 
 
@@ -209,7 +210,8 @@ def test_garbage_from_a_peer_never_crashes_the_robot_and_commands_still_get_thro
     air.scheduled.append((0.2123, lambda now: (seqs.append(r1.brain.command_follow(2, now)), air._peer_flush())))
     loop.run(0.5)
     assert r1.brain.outgoing[seqs[0]].result == ResultCode.ACCEPTED
-    assert not any(e.kind == "command_received" and "Stop" in e.detail for e in r2.brain.log)  # no forged Stop
+    assert not any(isinstance(e, ev.CommandReceived) and e.command is MessageType.STOP
+                   for e in r2.brain.log)  # no forged Stop
     mesh = r2.stack.node.stats
     assert mesh.received - mesh.accepted >= len(junk) + len(real[0])  # not one bad frame was used
 
@@ -267,35 +269,39 @@ def test_a_pose_the_wire_cannot_carry_halts_the_leader_with_a_warning_and_no_exc
         loop.run(6.0)  # robot_1 is stepped on the same clock: nothing may raise
     assert r1.brain.pose_fault is not None and not r1.brain.streams
     assert r1.body._v == 0.0 and r1.body._w == 0.0  # halted
-    assert [e.kind for e in r1.brain.log].count("pose_fault") == 1  # reported once, not every step
+    assert [type(e) for e in r1.brain.log].count(ev.PoseFault) == 1  # reported once, not every step
     assert any("outside the wire's range" in record.getMessage() for record in caplog.records)
     r1.body._x = 10.0  # back in range: the fault clears
     loop.run(0.5)
-    assert r1.brain.pose_fault is None and "pose_fault_cleared" in [e.kind for e in r1.brain.log]
+    assert r1.brain.pose_fault is None and ev.PoseFaultCleared in [type(e) for e in r1.brain.log]
+
+
+def _received(i: int) -> ev.CommandReceived:
+    return ev.CommandReceived(float(i), "robot_1", MessageType.GOTO, 2, i, 1)
 
 
 def test_the_brains_log_is_a_ring_with_a_count_of_what_it_dropped():
     # this used to grow without bound: a key holder's commands each add a line
-    from rescuemesh.robot.records import BrainEvent, BrainLog
+    from rescuemesh.robot.records import BrainLog
 
     log = BrainLog(capacity=8)  # holds at most 8 + 8 // 8 = 9, then keeps the latest 8
     for i in range(10):
-        log.append(BrainEvent(float(i), "robot_1", "command_received", str(i)))
+        log.append(_received(i))
     assert len(log) == 8 and log.total == 10 and log.dropped == 2
-    assert [e.detail for e in log] == [str(i) for i in range(2, 10)]
-    assert [e.detail for e in log.since(1)][:1] == ["2"] and [e.detail for e in log.since(9)] == ["9"]
-    assert log.since(10) == [] and log[-1].detail == "9"
+    assert [e.seq for e in log] == list(range(2, 10))
+    assert [e.seq for e in log.since(1)][:1] == [2] and [e.seq for e in log.since(9)] == [9]
+    assert log.since(10) == [] and log[-1].seq == 9
     for i in range(10, 10_000):
-        log.append(BrainEvent(float(i), "robot_1", "command_received", str(i)))
+        log.append(_received(i))
     assert len(log) <= 9 and log.total == 10_000
 
 
 def test_a_brain_log_extended_counts_and_bounds_like_appends():
     # the process world mirrors a robot's log with extend(); list.extend used to skip the count, so a
     # reader of since(total) (the recorder) read nothing or everything again
-    from rescuemesh.robot.records import BrainEvent, BrainLog
+    from rescuemesh.robot.records import BrainLog
 
     log = BrainLog(capacity=8)
-    log.extend(BrainEvent(float(i), "robot_1", "x") for i in range(20))
+    log.extend(_received(i) for i in range(20))
     assert log.total == 20 and len(log) <= 9 and log.dropped == 20 - len(log)
     assert [e.time_s for e in log.since(18)] == [18.0, 19.0]

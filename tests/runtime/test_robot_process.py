@@ -9,14 +9,15 @@ from rescuemesh.geometry import Pose2D
 from rescuemesh.maps import load_map, office_map_path
 from rescuemesh.nav import Costmap, NavigateToPose
 from rescuemesh.protocol import DataKind, ResultCode
-from rescuemesh.robot import BrainEvent
+from rescuemesh.protocol import MessageType, Reason
+from rescuemesh.robot.events import Confirm
 from rescuemesh.runtime.processes import control_messages as msg
 from rescuemesh.runtime.processes.control_codec import CodecError, decode, encode
 
 
 @pytest.mark.parametrize("value", [
     None, 3, 2.5, "robot_2", b"\x01", ResultCode.ACCEPTED, Pose2D(1.0, 2.0, 0.5),
-    [BrainEvent(0.1, "robot_1", "confirm", "Follow by robot_2: ACCEPTED")], {1: Pose2D(0, 0, 0)},
+    [Confirm(0.1, "robot_1", MessageType.FOLLOW, 2, 1, ResultCode.ACCEPTED, Reason.NONE, 255, 1)], {1: Pose2D(0, 0, 0)},
     np.zeros(360), (1, "a", None), (0.5, 2, DataKind.LASER_SCAN, 7, b"\x00\x01", 1),
 ])
 def test_plain_values_and_registered_types_cross_the_control_plane(value):

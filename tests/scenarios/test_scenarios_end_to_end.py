@@ -7,6 +7,10 @@ import pytest
 from results_doc import undocumented
 
 from rescuemesh.cli import main
+from rescuemesh.protocol import MessageType, Reason, ResultCode
+from rescuemesh.robot import events as ev
+from rescuemesh.scenarios import runner
+from rescuemesh.scenarios.runner import run_scenario
 
 
 def run(tmp_path, *argv):
@@ -15,6 +19,25 @@ def run(tmp_path, *argv):
     assert (tmp_path / "trajectory.png").stat().st_size > 10_000
     assert undocumented(result) == []  # every field defined in docs/results.md
     return code, result
+
+
+def run_kept(tmp_path, monkeypatch, *argv):
+    """`run`, and the runtime it ran (its brains' typed logs)."""
+    kept = []
+
+    def keep(*args, **kwargs):
+        outcome = run_scenario(*args, **kwargs)
+        kept.append(outcome.runtime)
+        return outcome
+
+    monkeypatch.setattr(runner, "run_scenario", keep)
+    code, result = run(tmp_path, *argv)
+    return code, result, kept[0]
+
+
+def logged(rt, kind, robot=None):
+    """The events of type `kind` in the brains' logs (of `robot` only if given), as result.json lists them."""
+    return [e for name, brain in rt.brains.items() if robot in (None, name) for e in brain.log if isinstance(e, kind)]
 
 
 def assert_common(result, code):
@@ -95,11 +118,11 @@ def test_same_seed_same_result(tmp_path):
 
 
 @pytest.mark.parametrize("scenario, seed", [("stop", 0), ("move-around", 0)])
-def test_a_command_given_up_and_asked_again_is_judged_on_the_confirmed_copy(tmp_path, scenario, seed):
+def test_a_command_given_up_and_asked_again_is_judged_on_the_confirmed_copy(tmp_path, monkeypatch, scenario, seed):
     # this used to judge the automatic Stop that follows a given-up command. Single hop (no relay:
     # the mesh's second path makes a give-up rare) at 30 % loss: these seeds lose all three Confirms.
-    code, result = run(tmp_path, scenario, "--loss", "0.3", "--no-relay", "--seed", str(seed))
-    assert any(e[2] == "command_given_up" for e in result["events"])
+    code, result, rt = run_kept(tmp_path, monkeypatch, scenario, "--loss", "0.3", "--no-relay", "--seed", str(seed))
+    assert logged(rt, ev.CommandGivenUp)
     assert_common(result, code)
 
 
@@ -119,21 +142,21 @@ def test_relay_carries_the_follow_over_two_hops_to_a_robot_out_of_direct_reach(t
     assert n["max_hops_delivered"] >= 2 and int(n["hops_histogram"]["2"]) > 0
 
 
-def test_relay_commands_robot_3_once_robot_1_has_heard_its_heartbeat(tmp_path):
+def test_relay_commands_robot_3_once_robot_1_has_heard_its_heartbeat(tmp_path, monkeypatch):
     # this used to give all three Follows up in 2.4 s (seed 0, loss 0.2): robot_1 had not heard
     # robot_3's Heartbeat over the two hops yet, so it could not open robot_3's Confirms
-    code, result = run(tmp_path, "relay", "--loss", "0.2", "--seed", "0")
+    code, result, rt = run_kept(tmp_path, monkeypatch, "relay", "--loss", "0.2", "--seed", "0")
     assert_common(result, code)
-    first = next(e for e in result["events"] if e[2] == "command_sent")
-    assert first[0] > 0.05 and "Follow to robot_3" in first[3]
+    first = logged(rt, ev.CommandSent)[0]
+    assert first.time_s > 0.05 and (first.command, first.dst) == (MessageType.FOLLOW, 3)
 
 
-def test_relay_without_relays_fails_because_the_command_is_given_up(tmp_path):
-    code, result = run(tmp_path, "relay", "--no-relay")
+def test_relay_without_relays_fails_because_the_command_is_given_up(tmp_path, monkeypatch):
+    code, result, rt = run_kept(tmp_path, monkeypatch, "relay", "--no-relay")
     assert code == 1 and result["success"] is False
     assert result["metrics"]["follow_accepted_s"] is None and result["metrics"]["follow_attempts"] == 3
     assert result["network"]["relayed_frames"] == 0
-    assert any(e[2] == "command_given_up" and "Follow" in e[3] for e in result["events"])
+    assert any(e.command is MessageType.FOLLOW for e in logged(rt, ev.CommandGivenUp))
 
 
 def test_disconnect_short_outage_halts_then_resumes(tmp_path):
@@ -145,14 +168,14 @@ def test_disconnect_short_outage_halts_then_resumes(tmp_path):
     assert result["network"]["receptions_lost"]["radio_off"] > 0
 
 
-def test_disconnect_long_outage_both_sides_end_the_follow_failed_link_lost(tmp_path):
-    code, result = run(tmp_path, "disconnect", "--outage", "20")
+def test_disconnect_long_outage_both_sides_end_the_follow_failed_link_lost(tmp_path, monkeypatch):
+    code, result, rt = run_kept(tmp_path, monkeypatch, "disconnect", "--outage", "20")
     assert code == 0, [c for c in result["criteria"] if not c["ok"]]
     m = result["metrics"]
     assert m["expected"] == "fail" and m["follow_failed_link_lost"] == {"robot_1": True, "robot_2": True}
     assert 3.0 <= m["link_lost_s"] - m["outage_start_s"] <= 4.6  # 3 missed heartbeats + half a period
-    ended = [e for e in result["events"] if e[1] == "robot_2" and e[2] == "behaviour_ended"]
-    assert ended and "FAILED link lost" in ended[-1][3]
+    ended = logged(rt, ev.BehaviourEnded, "robot_2")
+    assert ended and (ended[-1].result, ended[-1].reason) == (ResultCode.FAILED, Reason.LINK_LOST)
 
 
 def test_disconnect_outage_within_the_window_after_the_link_is_lost_resumes(tmp_path):
@@ -257,8 +280,8 @@ def test_land_on_top_the_drone_lands_on_robot_2_and_is_carried(tmp_path):
     assert "LANDING_PAD" in seen["robot_2_by_robot_4"] and "CAMERA" in seen["robot_2_by_robot_4"]
 
 
-def test_convoy_of_eight_forms_link_by_link_and_ends_in_the_hall(tmp_path):
-    code, result = run(tmp_path, "convoy", "--robots", "8")
+def test_convoy_of_eight_forms_link_by_link_and_ends_in_the_hall(tmp_path, monkeypatch):
+    code, result, rt = run_kept(tmp_path, monkeypatch, "convoy", "--robots", "8")
     assert code == 0 and result["success"], [c for c in result["criteria"] if not c["ok"]]
     # a busy air may cost a Follow its three sends; the chain then asks again (CommandRequest)
     assert result["protocol"]["commands_confirmed"] >= 7
@@ -267,8 +290,8 @@ def test_convoy_of_eight_forms_link_by_link_and_ends_in_the_hall(tmp_path):
     assert all(0.4 <= gap <= 1.2 for gap in m["final_gaps_m"])
     assert {robot["final_region"] for robot in result["robots"].values()} == {"hall"}
     assert all(robot["path_length_m"] > 10.0 for robot in result["robots"].values())
-    forms = [e for e in result["events"] if e[2] == "confirm" and "Follow" in e[3] and "ACCEPTED" in e[3]]
-    assert [e[1] for e in forms] == [f"robot_{k}" for k in range(1, 8)]  # link by link from the front
+    forms = [e for e in logged(rt, ev.Confirm) if (e.command, e.result) == (MessageType.FOLLOW, ResultCode.ACCEPTED)]
+    assert [e.robot for e in forms] == [f"robot_{k}" for k in range(1, 8)]  # link by link from the front
 
 
 def test_convoy_on_a_map_without_rooms_is_judged_on_the_unbroken_chain(tmp_path):

@@ -58,8 +58,9 @@ def corpus() -> list[bytes]:
     from rescuemesh.geometry import Pose2D
     from rescuemesh.maps.grid import OccupancyGrid
     from rescuemesh.mesh.node import Transmission
-    from rescuemesh.protocol import Pose, ResultCode, ShowScan
-    from rescuemesh.robot.records import BrainEvent, OutgoingCommand
+    from rescuemesh.protocol import MessageType, Pose, ResultCode, ShowScan
+    from rescuemesh.robot.events import CommandSent
+    from rescuemesh.robot.records import OutgoingCommand
     from rescuemesh.runtime.config import SimConfig
 
     pose = Pose2D(1.5, -2.0, 0.3)
@@ -67,7 +68,7 @@ def corpus() -> list[bytes]:
     grid = OccupancyGrid(np.zeros((6, 8), dtype=bool), 0.05, -1.0, -2.0)
     transmission = Transmission(b"\x01\x02\x03", 1, 2, 3, 17, 4, False, None, None)
     status = msg.StatusDelta(True, msg.RunningView("follow", 1.0), [], [OutgoingCommand(3, 2, "Follow", 0.5,
-                             result=ResultCode.ACCEPTED)], [BrainEvent(0.5, "robot_1", "command_sent", "Follow")],
+                             result=ResultCode.ACCEPTED)], [CommandSent(0.5, "robot_1", MessageType.FOLLOW, 2, 3)],
                              None, 0)
     values = [
         msg.Hello(), msg.HelloReply(b"n" * 16),

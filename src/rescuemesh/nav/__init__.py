@@ -6,7 +6,7 @@ Must not know: MuJoCo, rescuemesh.sim, rescuemesh.robot, rescuemesh.protocol, or
 
 from rescuemesh.nav.controller import ControllerParams, compute_velocity, limit_acceleration, rotate_toward
 from rescuemesh.nav.costmap import LETHAL, Costmap
-from rescuemesh.nav.navigate import GoalStatus, NavFeedback, NavigateToPose, NavParams, NavResult
+from rescuemesh.nav.navigate import GoalStatus, NavFeedback, NavigateToPose, NavParams, NavReason, NavResult
 from rescuemesh.nav.path import Path
 from rescuemesh.nav.planner import PLANNERS, MCPPlanner, Planner, StraightLinePlanner, make_planner, register_planner
 
@@ -19,6 +19,7 @@ __all__ = [
     "MCPPlanner",
     "NavFeedback",
     "NavParams",
+    "NavReason",
     "NavResult",
     "NavigateToPose",
     "Path",

@@ -32,6 +32,16 @@ class GoalStatus(enum.Enum):
     CANCELED = "canceled"
 
 
+class NavReason(enum.StrEnum):
+    """Why a goal ended (the values are the words the logs show)."""
+
+    REACHED = "reached"
+    NO_PATH = "no path"
+    STUCK = "stuck"
+    CANCELED = "canceled"
+    PREEMPTED = "preempted"
+
+
 @dataclass(frozen=True)
 class NavFeedback:
     """Progress of the active goal: remaining path length in m to the goal, at time `now` s."""
@@ -43,11 +53,11 @@ class NavFeedback:
 
 @dataclass(frozen=True)
 class NavResult:
-    """How a goal ended, at time `now` s. `reason`: "reached", "no path", "stuck", "canceled", "preempted"."""
+    """How a goal ended, at time `now` s, and why."""
 
     goal_id: int
     status: GoalStatus
-    reason: str
+    reason: NavReason
     now: float
 
 
@@ -168,7 +178,7 @@ class NavigateToPose:
         the controller still stops for every scan point (the follower never rams its leader).
         """
         if self._goal is not None:
-            self._finish(GoalStatus.CANCELED, "preempted", now)
+            self._finish(GoalStatus.CANCELED, NavReason.PREEMPTED, now)
         goal_id = self._next_id
         self._next_id += 1
         self._goal = _Goal(
@@ -218,7 +228,7 @@ class NavigateToPose:
     def cancel(self, now: float) -> None:
         """End the active goal CANCELED "canceled"; no-op when idle."""
         if self._goal is not None:
-            self._finish(GoalStatus.CANCELED, "canceled", now)
+            self._finish(GoalStatus.CANCELED, NavReason.CANCELED, now)
 
     # -- the tick -------------------------------------------------------------------------------
 
@@ -261,7 +271,7 @@ class NavigateToPose:
         self._feedback = NavFeedback(g.goal_id, remaining, now)
 
         if g.stop_distance > 0.0 and remaining <= g.stop_distance:
-            self._finish(GoalStatus.SUCCEEDED, "reached", now)
+            self._finish(GoalStatus.SUCCEEDED, NavReason.REACHED, now)
             return (0.0, 0.0)
         if g.stop_distance <= 0.0 and self._within_xy(g, pose):
             g.xy_reached = True
@@ -292,11 +302,11 @@ class NavigateToPose:
     def _align(self, g: _Goal, now: float, pose: Pose2D) -> tuple[float, float]:
         self._feedback = NavFeedback(g.goal_id, pose.distance_to(g.pose), now)
         if not g.check_yaw:
-            self._finish(GoalStatus.SUCCEEDED, "reached", now)
+            self._finish(GoalStatus.SUCCEEDED, NavReason.REACHED, now)
             return (0.0, 0.0)
         error = wrap_angle(g.pose.yaw - pose.yaw)
         if abs(error) <= self.params.yaw_tolerance:
-            self._finish(GoalStatus.SUCCEEDED, "reached", now)
+            self._finish(GoalStatus.SUCCEEDED, NavReason.REACHED, now)
             return (0.0, 0.0)
         if self._stuck(g, now, pose, None, abs(error)):
             return (0.0, 0.0)
@@ -315,7 +325,7 @@ class NavigateToPose:
             return False
         assert g.progress_at is not None
         if now - g.progress_at > p.stuck_timeout_s:
-            self._finish(GoalStatus.ABORTED, "stuck", now)
+            self._finish(GoalStatus.ABORTED, NavReason.STUCK, now)
             return True
         return False
 
@@ -368,12 +378,12 @@ class NavigateToPose:
             path = self.planner.plan(self.costmap, pose, g.pose, goal_tolerance=g.clear_radius)
             fallback = True
         if path is None:
-            self._finish(GoalStatus.ABORTED, "no path", now)
+            self._finish(GoalStatus.ABORTED, NavReason.NO_PATH, now)
             return False
         g.path, g.s_progress, g.last_plan, g.force_replan, g.on_fallback = path, 0.0, now, False, fallback
         return True
 
-    def _finish(self, status: GoalStatus, reason: str, now: float) -> None:
+    def _finish(self, status: GoalStatus, reason: NavReason, now: float) -> None:
         g = self._goal
         assert g is not None
         self._results.append(NavResult(g.goal_id, status, reason, now))

@@ -16,7 +16,7 @@ from .events import (
     ConfirmReceived,
     DataReceived,
     DeliveryFailed,
-    Event,
+    EndpointEvent,
     FrameRejected,
     HeartbeatReceived,
     PoseUpdateReceived,
@@ -118,7 +118,7 @@ class Endpoint:
         self._numbered = False  # no number handed out yet (seq 0 then opens no new epoch)
         self._outbox: list[tuple[bytes, int]] = []  # (frame, epoch it was numbered in)
         self._open: OrderedDict[tuple[int, int], MessageType] = OrderedDict()  # awaiting a final report
-        self._events: deque[Event] = deque()
+        self._events: deque[EndpointEvent] = deque()
         self._pending = RetransmissionQueue(self.config.reliability)
         self._seen = DuplicateCache(self.config.reliability)
         # received message type -> handler; every MessageType has one
@@ -288,7 +288,7 @@ class Endpoint:
                 self.stats.delivery_failures += 1
                 self._events.append(DeliveryFailed(frame.dst, frame.seq, frame.message, frame.sends, now))
 
-    def next_event(self) -> Event | None:
+    def next_event(self) -> EndpointEvent | None:
         """The oldest event not yet pulled, or None."""
         return self._events.popleft() if self._events else None
 

@@ -1,6 +1,7 @@
 """Events the Endpoint hands to its application, pulled with `Endpoint.next_event()` (None when empty).
 Owns the event dataclasses only; must not know how they are produced or what the application does.
-Events carry `now` (s) and, for a received frame, `hops`: the radio hops it crossed (mesh-layer fact).
+Every event is an EndpointEvent (as every mesh event is a MeshEvent) and carries `now` (s); one for
+a received frame also carries `hops`: the radio hops it crossed (mesh-layer fact).
 """
 
 from __future__ import annotations
@@ -12,7 +13,12 @@ from .messages import Command, DataKind, Message, MessageType, Pose, Reason, Res
 
 
 @dataclass(frozen=True, slots=True)
-class CommandReceived:
+class EndpointEvent:
+    """Base class of every endpoint event: consumers dispatch on `type(event)` through a table."""
+
+
+@dataclass(frozen=True, slots=True)
+class CommandReceived(EndpointEvent):
     """A new (not a resend) command addressed to us. Answer it with `Endpoint.confirm(src, seq, ...)`."""
 
     src: int
@@ -23,7 +29,7 @@ class CommandReceived:
 
 
 @dataclass(frozen=True, slots=True)
-class PoseUpdateReceived:
+class PoseUpdateReceived(EndpointEvent):
     """A new PoseUpdate addressed to us. Confirm it: ACCEPTED if following `src`, DENIED otherwise."""
 
     src: int
@@ -34,7 +40,7 @@ class PoseUpdateReceived:
 
 
 @dataclass(frozen=True, slots=True)
-class ConfirmReceived:
+class ConfirmReceived(EndpointEvent):
     """A Confirm from `src` for our frame `ref_seq`.
 
     solicited: it answers a frame we were still retrying; `sends` is how many sends that took and
@@ -56,7 +62,7 @@ class ConfirmReceived:
 
 
 @dataclass(frozen=True, slots=True)
-class DataReceived:
+class DataReceived(EndpointEvent):
     """New bulk data from `src` (frame `seq`), answering our command `ref_seq`. Confirm it."""
 
     src: int
@@ -69,7 +75,7 @@ class DataReceived:
 
 
 @dataclass(frozen=True, slots=True)
-class DeliveryFailed:
+class DeliveryFailed(EndpointEvent):
     """No Confirm for frame `seq` to `dst` after `sends` (= max_sends) sends; retrying stopped."""
 
     dst: int
@@ -80,7 +86,7 @@ class DeliveryFailed:
 
 
 @dataclass(frozen=True, slots=True)
-class HeartbeatReceived:
+class HeartbeatReceived(EndpointEvent):
     """A Heartbeat from `src`; `active_command` is a MessageType value or 0 when idle."""
 
     src: int
@@ -91,7 +97,7 @@ class HeartbeatReceived:
 
 
 @dataclass(frozen=True, slots=True)
-class FrameRejected:
+class FrameRejected(EndpointEvent):
     """A received frame was dropped: `error_type` is the FrameError subclass name, `reason` its text."""
 
     reason: str
@@ -99,6 +105,7 @@ class FrameRejected:
     now: float
 
 
+#: Every endpoint event type (`EndpointEvent`'s subclasses), as a type for annotations.
 Event = Union[
     CommandReceived,
     PoseUpdateReceived,

@@ -27,6 +27,7 @@ from rescuemesh.protocol import BROADCAST, MessageType
 from rescuemesh.report.live_origin import OriginGuard, origins_from_env
 from rescuemesh.report.plots import robot_colours
 from rescuemesh.robot import robot_name
+from rescuemesh.robot.events import BehaviourEnded, BehaviourStarted, BrainEventKind
 
 #: The fixed frame (REP-105); each robot's body frame is f"{name}/{BASE_LINK}".
 MAP_FRAME, BASE_LINK = "map", "base_link"
@@ -44,9 +45,10 @@ DEFAULT_SCAN_HEIGHT_M = 0.2
 #: Height in m of a robot's body in the scene when the body has no `top_height`.
 DEFAULT_BODY_HEIGHT_M = 0.3
 #: Brain log kinds shown as warnings in Foxglove's Log panel; every other kind is INFO.
-WARNING_KINDS = frozenset({"command_given_up", "follow_given_up", "command_failed", "command_denied",
-                           "command_rejected", "link_lost", "transfer_failed", "forward_undelivered",
-                           "frame_rejected", "peer_restarted", "waypoints_skipped"})
+_K = BrainEventKind
+WARNING_KINDS = frozenset({_K.COMMAND_GIVEN_UP, _K.FOLLOW_GIVEN_UP, _K.COMMAND_FAILED, _K.COMMAND_DENIED,
+                           _K.COMMAND_REJECTED, _K.LINK_LOST, _K.TRANSFER_FAILED, _K.FORWARD_UNDELIVERED,
+                           _K.FRAME_REJECTED, _K.PEER_RESTARTED, _K.WAYPOINTS_SKIPPED})
 
 #: /radio/frames: one message per transmission on the air (rescuemesh.transport.sim_medium.AirRecord, decoded).
 RADIO_SCHEMA = {
@@ -290,10 +292,11 @@ class RunRecorder:
             log = self.rt.brains[name].log  # the one read of this brain this period (a ring: brain.BrainLog)
             for event in log.since(self._log_done[name]):
                 level = LogLevel.Warning if event.kind in WARNING_KINDS else LogLevel.Info
-                text = f"{event.kind}: {event.detail}" if event.detail else event.kind
+                detail = event.detail  # the one rendering of the event as text
+                text = f"{event.kind}: {detail}" if detail else str(event.kind)
                 self._emit(self._log, "/log", Log(timestamp=_stamp(event.time_s), level=level, message=text,
                                                   name=event.robot), event.time_s)
-                if event.kind in ("behaviour_started", "behaviour_ended"):
+                if isinstance(event, (BehaviourStarted, BehaviourEnded)):
                     self._emit(self._behaviours, "/behaviours", _behaviour(event), event.time_s)
             self._log_done[name] = log.total
 
@@ -350,11 +353,10 @@ def _who(address: int) -> str:
     return robot_name(address) if 1 <= address <= 254 else str(address)
 
 
-def _behaviour(event) -> dict:
-    started = event.kind == "behaviour_started"
-    name, _, outcome = event.detail.partition(": ")
+def _behaviour(event: BehaviourStarted | BehaviourEnded) -> dict:
+    started = isinstance(event, BehaviourStarted)
     return {"time_s": event.time_s, "robot": event.robot, "event": "started" if started else "ended",
-            "behaviour": event.detail if started else name, "result": "" if started else outcome.split(" ")[0],
+            "behaviour": event.detail if started else event.behaviour, "result": "" if started else event.result.name,
             "detail": event.detail}
 
 

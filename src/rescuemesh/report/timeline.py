@@ -20,16 +20,17 @@ import numpy as np  # noqa: E402
 
 from rescuemesh.report.plots import SMALL_TEAM, legend_label, robot_colours  # noqa: E402
 from rescuemesh.robot import robot_name  # noqa: E402
+from rescuemesh.robot.events import BrainEventKind  # noqa: E402
 
 #: Brain log entries worth a mark on the speed plot, and how to draw them.
 EVENT_MARKS = {
-    "command_sent": ("v", "command sent"),
-    "stopped": ("X", "Stop arrived"),
-    "command_given_up": ("D", "command given up"),
-    "follow_given_up": ("D", "command given up"),
-    "behaviour_ended": ("|", "behaviour ended"),
-    "link_lost": ("s", "link lost (paused)"),
-    "link_resumed": ("^", "link resumed"),
+    BrainEventKind.COMMAND_SENT: ("v", "command sent"),
+    BrainEventKind.STOPPED: ("X", "Stop arrived"),
+    BrainEventKind.COMMAND_GIVEN_UP: ("D", "command given up"),
+    BrainEventKind.FOLLOW_GIVEN_UP: ("D", "command given up"),
+    BrainEventKind.BEHAVIOUR_ENDED: ("|", "behaviour ended"),
+    BrainEventKind.LINK_LOST: ("s", "link lost (paused)"),
+    BrainEventKind.LINK_RESUMED: ("^", "link resumed"),
 }
 #: Rows of the radio panel: message kinds, bottom to top.
 KINDS = ("Heartbeat", "Confirm", "PoseUpdate", "Command", "Bulk")

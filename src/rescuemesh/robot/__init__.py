@@ -5,7 +5,8 @@ simulator (it talks to a `rescuemesh.body.Body`), the transport, the clock (it i
 """
 
 from rescuemesh.robot.brain import RobotBrain
-from rescuemesh.robot.records import BrainConfig, BrainEvent, FinishedBehaviour
+from rescuemesh.robot.events import BrainEvent, BrainEventKind
+from rescuemesh.robot.records import BrainConfig, FinishedBehaviour
 from rescuemesh.robot.naming import robot_address, robot_name
 
-__all__ = ["BrainConfig", "BrainEvent", "FinishedBehaviour", "RobotBrain", "robot_address", "robot_name"]
+__all__ = ["BrainConfig", "BrainEvent", "BrainEventKind", "FinishedBehaviour", "RobotBrain", "robot_address", "robot_name"]

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 from rescuemesh.body import LaserScan
 from rescuemesh.geometry import Pose2D, yaw_to_quaternion
-from rescuemesh.nav import GoalStatus, NavigateToPose
+from rescuemesh.nav import GoalStatus, NavigateToPose, NavReason
 from rescuemesh.protocol import Reason, ResultCode
 
 STOPPED = (0.0, 0.0)
@@ -105,7 +105,7 @@ class NavigateBehaviour(Behaviour):
                 continue
             if result.status is GoalStatus.SUCCEEDED:
                 return self._finish(ResultCode.DONE)
-            reason = Reason.NO_PATH if "no path" in str(result.reason).lower() else Reason.STUCK
+            reason = Reason.NO_PATH if result.reason is NavReason.NO_PATH else Reason.STUCK
             return self._finish(ResultCode.FAILED, reason, f"navigation {result.status.name.lower()}: {result.reason}")
         return v_w
 

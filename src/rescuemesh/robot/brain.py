@@ -19,6 +19,7 @@ docs/design.md has the timings.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from collections import deque
 
@@ -31,10 +32,7 @@ from rescuemesh.protocol import (
     CommandReceived,
     DataKind,
     Goto,
-    LandOnTop,
     Return,
-    ShowCam,
-    ShowScan,
     ConfirmReceived,
     Data,
     DataReceived,
@@ -59,18 +57,16 @@ from rescuemesh.robot.behaviours import (
     NavigateBehaviour,
     circle_waypoints,
 )
+from rescuemesh.robot import events as ev
+from rescuemesh.robot.commands import COMMANDS, priority_of, resources_of, traits
 from rescuemesh.robot.custody import ReportCustody
 from rescuemesh.robot.forwarding import Forwarder, JobProgress
 from rescuemesh.robot.naming import robot_name
-from rescuemesh.robot.policy import MOTION_LEVEL, Priority, Rank, Resource, conflict, priority_of, resources_of
+from rescuemesh.robot.policy import MOTION_LEVEL, Priority, Rank, Resource, conflict
 from rescuemesh.robot.landing import LandOnTopBehaviour
 from rescuemesh.robot.link_loss import LinkLossAndReports
 from rescuemesh.robot.records import (
-    MOTION_COMMANDS,
-    REPORTS_PROGRESS,
-    STREAMED,
     BrainConfig,
-    BrainEvent,
     BrainLog,
     FinishedBehaviour,
     OutgoingCommand,
@@ -130,9 +126,8 @@ class RobotBrain(LinkLossAndReports, SensorCommands):
         self.power_on_s = power_on_s(self.address, self.config.power_on_spread_s)
         self._next_heartbeat_s = 0.0  # the first at once (peers learn our epoch from it), then on our phase
         self._heartbeat_phase_s = heartbeat_phase_s(self.address, self.config.heartbeat_period_s)
-        self._handlers = {Follow: self._on_follow, Stop: self._on_stop, MoveAround: self._on_move_around,
-                          ForwardMsg: self._on_forward, Goto: self._on_goto, Return: self._on_return,
-                          ShowScan: self._on_show, ShowCam: self._on_show, LandOnTop: self._on_land_on_top}
+        #: Each command type's handler, named in robot/commands.py's table.
+        self._handlers = {msg_type: getattr(self, row.handler) for msg_type, row in COMMANDS.items()}
         self._on_protocol = {
             CommandReceived: self._on_command, PoseUpdateReceived: self._on_pose_update,
             ConfirmReceived: self._on_confirm, DeliveryFailed: self._on_delivery_failed,
@@ -203,7 +198,7 @@ class RobotBrain(LinkLossAndReports, SensorCommands):
                                             "wire's range (|x|, |y| <= 327.67 m, finite)")
         if self.pose_fault is not None:
             self.pose_fault = None
-            self._note(now, "pose_fault_cleared", f"pose ({pose.x:.2f}, {pose.y:.2f}) fits the wire again")
+            self._note(ev.PoseFaultCleared(now, self.name, pose.x, pose.y))
         try:
             self._step(now)
         except EncodeError as exc:  # the pose moved out of range during the step
@@ -214,7 +209,7 @@ class RobotBrain(LinkLossAndReports, SensorCommands):
         ended, nothing that carries the pose sent, Heartbeats go on, the body stands still."""
         if self.pose_fault is None:
             self.pose_fault = why
-            self._note(now, "pose_fault", f"{why}: halted, the pose is not sent")
+            self._note(ev.PoseFault(now, self.name, why))
             _LOG.warning("%s: %s: halted, the pose is not sent", self.name, why)
         self.streams.clear()
         try:
@@ -272,7 +267,7 @@ class RobotBrain(LinkLossAndReports, SensorCommands):
     def _report_progress(self, now: float) -> None:
         """MAVLink's long-running command pattern: IN_PROGRESS with a percentage, every period."""
         running = self.running
-        if running.commander is None or running.seq is None or running.msg_type not in REPORTS_PROGRESS \
+        if running.commander is None or running.seq is None or not traits(running.msg_type).reports_progress \
                 or now < running.next_report_s:
             return
         if not self.network.is_reachable(running.commander, now):
@@ -292,25 +287,22 @@ class RobotBrain(LinkLossAndReports, SensorCommands):
 
     def _on_command(self, event: CommandReceived, now: float) -> None:
         self._forget_reused_seq(event)
-        hops = f" ({event.hops} hops)" if event.hops > 1 else ""
-        self._note(event.now, "command_received",
-                   f"{type(event.command).__name__} from {robot_name(event.src)} (seq {event.seq}){hops}")
-        self._handlers.get(type(event.command), self._on_unsupported)(event, now)
+        self._note(ev.CommandReceived(event.now, self.name, event.command.TYPE, event.src, event.seq, event.hops))
+        self._handlers.get(event.command.TYPE, self._on_unsupported)(event, now)
 
     def _on_frame_rejected(self, event: FrameRejected, now: float) -> None:
         self.frames_rejected += 1
-        self._note(event.now, "frame_rejected", event.reason)
+        self._note(ev.FrameRejected(event.now, self.name, event.reason, event.error_type))
 
     def _on_data(self, event: DataReceived, now: float) -> None:
         self.endpoint.confirm(event.src, event.seq, MessageType.DATA, ResultCode.ACCEPTED, now)
         job = self.forwarder.answering(event.src, event.ref_seq)
         if job is not None:  # a forwarded command's data: on to the robot that asked, answering its ForwardMsg
             self.endpoint.send_data(job.sender, event.kind, job.seq, event.data, now)
-            self._note(now, "forward_data", f"{event.kind.name} {len(event.data)} B from {robot_name(event.src)} "
-                                            f"to {robot_name(job.sender)}")
+            self._note(ev.ForwardData(now, self.name, event.kind, len(event.data), event.src, job.sender))
             return
         self.received_data.append((event.now, event.src, event.kind, event.ref_seq, event.data, event.hops))
-        self._note(event.now, "data_received", f"{event.kind.name} {len(event.data)} B from {robot_name(event.src)}")
+        self._note(ev.DataReceived(event.now, self.name, event.kind, len(event.data), event.src))
 
     def _confirm(self, event, result: ResultCode, now: float, progress: int = 255,
                  reason: Reason = Reason.NONE) -> None:
@@ -328,22 +320,21 @@ class RobotBrain(LinkLossAndReports, SensorCommands):
         if self.body.kind is RobotKind.FLYING:
             self.body.hold()  # hover where it is (on a top with its rotors off it stays there)
         self._confirm(event, ResultCode.DONE, now)
-        self._note(event.now, "stopped", f"by {robot_name(event.src)}")
+        self._note(ev.Stopped(event.now, self.name, event.src))
 
     def _admit(self, event: CommandReceived, now: float, also_needs: Resource = Resource.NONE) -> bool:
         """Whether the command may start now (policy.py); otherwise answer TEMPORARILY_REJECTED."""
         running = self.running
         if running is None:
             return True
-        reason = conflict(event.command.TYPE, self.rank_of(event.src), running.resources, running.priority,
-                          also_needs)
+        msg_type = event.command.TYPE
+        reason = conflict(priority_of(msg_type, self.rank_of(event.src)), resources_of(msg_type) | also_needs,
+                          running.resources, running.priority)
         if reason is None:
             return True
         self._confirm(event, ResultCode.TEMPORARILY_REJECTED, now, reason=reason)
-        holder = "own mission" if running.commander is None else \
-            f"{running.msg_type.name} from {robot_name(running.commander)}"
-        self._note(now, "command_rejected", f"{type(event.command).__name__} from {robot_name(event.src)}: "
-                                            f"{reason.name} by {holder}")
+        self._note(ev.CommandRejected(now, self.name, msg_type, event.src, reason, running.msg_type,
+                                      running.commander))
         return False
 
     def _running_for(self, event: CommandReceived, behaviour: Behaviour, now: float) -> Running:
@@ -384,10 +375,10 @@ class RobotBrain(LinkLossAndReports, SensorCommands):
         skipped = [p for p in points if p not in free]
         if skipped:
             indices = dict.fromkeys(p.index for p in skipped)  # the closing repeat of the first is one waypoint
-            self._note(now, "waypoints_skipped", ", ".join(str(i) for i in indices))
+            self._note(ev.WaypointsSkipped(now, self.name, tuple(indices)))
         if not free:
             self._confirm(event, ResultCode.DENIED, now, reason=Reason.BLOCKED)
-            self._note(now, "command_denied", "MoveAround: every waypoint is inside an obstacle")
+            self._note(ev.CommandDenied(now, self.name, MessageType.MOVE_AROUND, Reason.BLOCKED))
             return
         behaviour = MoveAroundBehaviour(self.nav, free, skipped, now)
         self._start(self._running_for(event, behaviour, now), now)
@@ -398,10 +389,10 @@ class RobotBrain(LinkLossAndReports, SensorCommands):
         job = self.forwarder.accept(event.src, event.seq, command.target, command.message, now)
         if isinstance(job, Reason):
             self._confirm(event, ResultCode.DENIED, now, reason=job)
-            self._note(now, "command_denied", f"ForwardMsg to {command.target}: {job.name}")
+            self._note(ev.CommandDenied(now, self.name, MessageType.FORWARD_MSG, job, command.target))
             return
         self._confirm(event, ResultCode.ACCEPTED, now)
-        self._note(now, "forward_accepted", f"{type(job.inner).__name__} for {robot_name(job.target)}")
+        self._note(ev.ForwardAccepted(now, self.name, job.inner.TYPE, job.target))
 
     def _on_pose_update(self, event: PoseUpdateReceived, now: float) -> None:
         self._forget_reused_seq(event)
@@ -424,7 +415,7 @@ class RobotBrain(LinkLossAndReports, SensorCommands):
                     stream.failed_in_a_row, stream.last_confirmed_s = 0, now
                 else:
                     del self.streams[event.src]
-                    self._note(now, "follow_ended", f"{robot_name(event.src)} answered {event.result.name}")
+                    self._note(ev.FollowEnded(now, self.name, event.src, event.result))
             return
         update = self.forwarder.confirmed(event.src, event.ref_seq, event.result, event.reason, event.progress, now)
         if isinstance(update, JobProgress):  # the target runs it: tell the robot that asked
@@ -433,7 +424,7 @@ class RobotBrain(LinkLossAndReports, SensorCommands):
                                   progress=update.progress)
             return
         if update is not None:
-            self._report_forward(update, now, f"{robot_name(event.src)} answered {event.result.name}")
+            self._report_forward(update, now, event.src, answered=event.result)
             return
         sent = self.outgoing.get(event.ref_seq)
         if sent is None or sent.peer != event.src:
@@ -444,13 +435,13 @@ class RobotBrain(LinkLossAndReports, SensorCommands):
             sent.confirmed_s = event.now
         if event.solicited:
             sent.sends, sent.hops = event.sends, event.hops
-        why = f" ({event.reason.name})" if event.reason is not Reason.NONE else ""
-        hops = f", {event.hops} hops" if event.hops > 1 else ""
-        self._note(event.now, "confirm", f"{sent.kind} by {robot_name(event.src)}: {event.result.name}{why}{hops}")
-        if sent.msg_type in STREAMED and event.solicited and event.result == ResultCode.ACCEPTED \
+        self._note(ev.Confirm(event.now, self.name, sent.msg_type, event.src, event.ref_seq, event.result,
+                              event.reason, event.progress, event.hops))
+        streamed = traits(sent.msg_type).streamed
+        if streamed and event.solicited and event.result == ResultCode.ACCEPTED \
                 and not self._stopped_since(event.src, sent.sent_s):
             self.streams[event.src] = PoseStream(event.src, event.ref_seq, next_send_s=now, last_confirmed_s=now)
-        elif sent.msg_type in STREAMED and event.result in (ResultCode.CANCELLED, ResultCode.FAILED, ResultCode.DONE):
+        elif streamed and event.result in (ResultCode.CANCELLED, ResultCode.FAILED, ResultCode.DONE):
             stream = self.streams.get(event.src)
             if stream is not None and stream.follow_seq == event.ref_seq:
                 del self.streams[event.src]
@@ -465,24 +456,23 @@ class RobotBrain(LinkLossAndReports, SensorCommands):
                 stream.failed_in_a_row += 1
             return
         if self.forwarder.undelivered(event.dst, event.seq):
-            self._note(now, "forward_undelivered", f"to {robot_name(event.dst)}: will try again while reachable")
+            self._note(ev.ForwardUndelivered(now, self.name, event.dst))
             return
         sent = self.outgoing.get(event.seq)
         if sent is None:
             return
         sent.failed, sent.sends = True, event.sends
         self.commands_failed += 1
-        self._note(now, "command_given_up", f"{sent.kind} to {robot_name(event.dst)} after {event.sends} sends")
-        if sent.msg_type in MOTION_COMMANDS:
+        self._note(ev.CommandGivenUp(now, self.name, sent.msg_type, event.dst, event.seq, event.sends))
+        if traits(sent.msg_type).motion:
             # The receiver may have executed it with every Confirm lost: bring both sides to a stop.
             self.command_stop(event.dst, now, automatic=True)
 
     def _on_peer_restarted(self, event: PeerRestarted, now: float) -> None:
-        self._note(now, "peer_restarted", f"{robot_name(event.address)} in epoch {event.epoch}")
+        self._note(ev.PeerRestarted(now, self.name, event.address, event.epoch))
 
     def _on_transfer_failed(self, event: TransferFailed, now: float) -> None:
-        self._note(now, "transfer_failed",
-                   f"to {robot_name(event.dst)}: {event.acked} of {event.total} segments acknowledged")
+        self._note(ev.TransferFailed(now, self.name, event.dst, event.acked, event.total))
 
     # ----- ForwardMsg jobs -----
 
@@ -493,21 +483,20 @@ class RobotBrain(LinkLossAndReports, SensorCommands):
             else:
                 seq = self.endpoint.send_command(job.target, job.inner, now)
             self.forwarder.sent(job, seq)
-            self._note(now, "forward_sent", f"{type(job.inner).__name__} to {robot_name(job.target)} "
-                                            f"for {robot_name(job.sender)}")
+            self._note(ev.ForwardSent(now, self.name, job.inner.TYPE, job.target, job.sender))
         for ended in self.forwarder.expired(now):
-            self._report_forward(ended, now, f"{robot_name(ended.job.target)} not reached in "
-                                             f"{self.config.forward_timeout_s:g} s")
+            self._report_forward(ended, now, ended.job.target, waited_s=self.config.forward_timeout_s)
 
-    def _report_forward(self, ended, now: float, detail: str) -> None:
+    def _report_forward(self, ended, now: float, peer: int, answered: ResultCode | None = None,
+                        waited_s: float | None = None) -> None:
         job = ended.job
         self._final_report(job.sender, job.seq, MessageType.FORWARD_MSG, ended.result, ended.reason, now,
                            ended.progress)
-        self._note(now, "forward_ended", f"{ended.result.name} {ended.reason.name}: {detail}".replace(" NONE", ""))
+        self._note(ev.ForwardEnded(now, self.name, ended.result, ended.reason, peer, answered, waited_s))
 
     def _stopped_since(self, peer: int, since_s: float) -> bool:
         """Whether this robot sent `peer` a Stop at or after `since_s`."""
-        return any(c.kind == "Stop" and c.peer == peer and c.sent_s >= since_s
+        return any(c.msg_type is MessageType.STOP and c.peer == peer and c.sent_s >= since_s
                    for c in self.outgoing.values())
 
     # ----- sending (send is public, with the command_* helpers above) -----
@@ -517,7 +506,7 @@ class RobotBrain(LinkLossAndReports, SensorCommands):
         seq = self.endpoint.send_command(peer, command, now)
         kind = type(command).__name__
         self.outgoing[seq] = OutgoingCommand(seq, peer, kind, now, command.TYPE)
-        self._note(now, "command_sent", f"{kind} to {robot_name(peer)}")
+        self._note(ev.CommandSent(now, self.name, command.TYPE, peer, seq))
         return seq
 
     def _stream_poses(self, now: float) -> None:
@@ -533,7 +522,7 @@ class RobotBrain(LinkLossAndReports, SensorCommands):
     def _start(self, running: Running, now: float) -> None:
         self._end_running(now, ResultCode.CANCELLED, Reason.REPLACED, f"replaced by {running.behaviour.name}")
         self.running = running
-        self._note(now, "behaviour_started", running.behaviour.name)
+        self._note(ev.BehaviourStarted(now, self.name, running.behaviour.name))
 
     def _end_running(self, now: float, result: ResultCode, code: Reason, reason: str = "",
                      sensing: bool = False) -> None:
@@ -549,13 +538,14 @@ class RobotBrain(LinkLossAndReports, SensorCommands):
         if running.commander is not None:
             self.lost_peers.pop(running.commander, None)
         self.finished.append(FinishedBehaviour(running.behaviour.name, running.started_s, now, result, reason, code))
-        self._note(now, "behaviour_ended", f"{running.behaviour.name}: {result.name} {reason}".rstrip())
+        self._note(ev.BehaviourEnded(now, self.name, running.behaviour.name, result, code, reason))
         if running.commander is not None and running.seq is not None:
             self._final_report(running.commander, running.seq, running.msg_type, result, code, now,
                                progress=running.behaviour.progress() if result != ResultCode.DONE else 100)
 
-    def _note(self, now: float, kind: str, detail: str = "") -> None:
-        self.log.append(BrainEvent(round(now, 3), self.name, kind, detail))
+    def _note(self, event: ev.BrainEvent) -> None:
+        """Log `event` (its time rounded to the ms, as the log has always kept it)."""
+        self.log.append(dataclasses.replace(event, time_s=round(event.time_s, 3)))
 
 
 def _ignore(event, now: float) -> None:

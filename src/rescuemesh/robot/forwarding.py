@@ -47,7 +47,7 @@ from dataclasses import dataclass
 from enum import Enum
 
 from rescuemesh.protocol import BROADCAST, Data, FrameError, Message, Reason, ResultCode, decode_inner, is_command
-from rescuemesh.robot.records import REPORTS_PROGRESS
+from rescuemesh.robot.commands import traits
 
 #: Results after which the target does no more with a command (MAVLink: anything but IN_PROGRESS
 #: and, for a long-running command, ACCEPTED).
@@ -147,7 +147,7 @@ class Forwarder:
         job = self._sent_job(src, ref_seq)
         if job is None:
             return None
-        long_running = is_command(job.inner) and job.inner.TYPE in REPORTS_PROGRESS
+        long_running = is_command(job.inner) and traits(job.inner.TYPE).reports_progress
         if long_running and result not in FINAL_RESULTS:
             if job.state is JobState.SENT:
                 job.state, job.deadline_s = JobState.RUNNING, now + self.result_timeout_s

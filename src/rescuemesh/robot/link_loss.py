@@ -10,9 +10,9 @@ from __future__ import annotations
 
 from rescuemesh.mesh import NeighbourFound, NeighbourLost
 from rescuemesh.protocol import MessageType, Reason, ResultCode
+from rescuemesh.robot import events as ev
 from rescuemesh.robot.behaviours import NavigateBehaviour
 from rescuemesh.robot.custody import HeldReport
-from rescuemesh.robot.naming import robot_name
 from rescuemesh.robot.records import LinkLossPolicy, Running
 
 
@@ -34,12 +34,10 @@ class LinkLossAndReports:
         if running is not None and running.commander == peer and peer not in self.streams:
             policy = self.config.policy_for(running.msg_type)
             if policy is LinkLossPolicy.CONTINUE:
-                self._note(now, "link_lost", f"{robot_name(peer)} silent since {event.last_heard_s:.2f} s: "
-                                             f"{running.behaviour.name} continues (link-loss policy continue)")
+                self._note(ev.LinkLost(now, self.name, peer, event.last_heard_s, policy, running.behaviour.name))
                 return
             if policy is LinkLossPolicy.RETURN_TO_BASE:
-                self._note(now, "link_lost", f"{robot_name(peer)} silent since {event.last_heard_s:.2f} s: "
-                                             f"returning to base (link-loss policy return_to_base)")
+                self._note(ev.LinkLost(now, self.name, peer, event.last_heard_s, policy))
                 self._end_running(now, ResultCode.FAILED, Reason.LINK_LOST, "link lost: returned to base")
                 base = self.config.base if self.config.base is not None else self.body.pose()
                 self._start(Running(NavigateBehaviour(self.nav, base, now), now), now)
@@ -51,8 +49,8 @@ class LinkLossAndReports:
             self.body.set_velocity(0.0, 0.0)
         if peer in self.streams:
             self.streams[peer].paused = True
-        self._note(now, "link_lost", f"{robot_name(peer)} silent since {event.last_heard_s:.2f} s: paused, "
-                                     f"reconnect window {self.config.reconnect_window_s:g} s")
+        self._note(ev.LinkLost(now, self.name, peer, event.last_heard_s, LinkLossPolicy.HOLD,
+                               window_s=self.config.reconnect_window_s))
 
     def _on_neighbour_found(self, event: NeighbourFound, now: float) -> None:
         peer = event.address
@@ -65,7 +63,7 @@ class LinkLossAndReports:
         if stream is not None:
             stream.paused, stream.last_confirmed_s = False, now
             stream.next_send_s = now
-        self._note(now, "link_resumed", f"{robot_name(peer)} heard again ({event.hops} hops): resumed")
+        self._note(ev.LinkResumed(now, self.name, peer, event.hops))
 
     def _end_lost_links(self, now: float) -> None:
         for peer, deadline in list(self.lost_peers.items()):
@@ -75,19 +73,18 @@ class LinkLossAndReports:
             if self.running is not None and self.running.commander == peer and self.running.paused_for_link:
                 self._end_running(now, ResultCode.FAILED, Reason.LINK_LOST, "link lost")
             if peer in self.streams:
-                self._end_stream(peer, now, Reason.LINK_LOST, "link lost")
+                self._end_stream(peer, now, Reason.LINK_LOST)
         for peer, stream in list(self.streams.items()):
             if not stream.paused and now - stream.last_confirmed_s > self.config.partner_give_up_s:
-                self._end_stream(peer, now, Reason.PARTNER_SILENT,
-                                 f"no PoseUpdate confirmed for {now - stream.last_confirmed_s:.1f} s")
+                self._end_stream(peer, now, Reason.PARTNER_SILENT, silent_s=now - stream.last_confirmed_s)
 
-    def _end_stream(self, peer: int, now: float, reason: Reason, detail: str) -> None:
+    def _end_stream(self, peer: int, now: float, reason: Reason, silent_s: float | None = None) -> None:
         stream = self.streams.pop(peer)
         sent = self.outgoing.get(stream.follow_seq)
         if sent is not None:
             sent.result, sent.reason = ResultCode.FAILED, reason
         self.commands_failed += 1
-        self._note(now, "follow_given_up", f"{robot_name(peer)}: {detail}")
+        self._note(ev.FollowGivenUp(now, self.name, peer, reason, silent_s))
         self.command_stop(peer, now, automatic=True)  # best effort: "both sides stop it"
 
     # ----- final reports: copies, and custody for a commander out of reach -----
@@ -105,7 +102,7 @@ class LinkLossAndReports:
         self._send_final_report(commander, seq, msg_type, result, code, now, progress)
         if not self.network.is_reachable(commander, now):  # its copies are likely lost: keep it
             self.custody.hold(HeldReport(commander, seq, msg_type, result, code, progress, now))
-            self._note(now, "report_held", f"{msg_type.name} {result.name} for {robot_name(commander)}, out of reach")
+            self._note(ev.ReportHeld(now, self.name, msg_type, result, commander))
 
     def _send_final_report(self, commander: int, seq: int, msg_type: MessageType, result: ResultCode, code: Reason,
                            now: float, progress: int) -> None:
@@ -123,8 +120,6 @@ class LinkLossAndReports:
                                       reason=r.reason)
             if copies > 1:
                 self._repeats.append((now + spacing, r.commander, r.seq, copies - 1))
-            self._note(now, "report_delivered", f"{r.msg_type.name} {r.result.name} to {robot_name(r.commander)}, "
-                                                f"held {now - r.held_s:.1f} s")
+            self._note(ev.ReportDelivered(now, self.name, r.msg_type, r.result, r.commander, now - r.held_s))
         for r in self.custody.expired(now):
-            self._note(now, "report_dropped", f"{r.msg_type.name} {r.result.name} for {robot_name(r.commander)}: "
-                                              f"not heard in {self.custody.hold_s:g} s")
+            self._note(ev.ReportDropped(now, self.name, r.msg_type, r.result, r.commander, self.custody.hold_s))

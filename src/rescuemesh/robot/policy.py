@@ -1,6 +1,7 @@
-"""Command priorities and resources as data: which resources each command needs, its default
-priority, and the sender's rank (paper IV.A: "checks incoming messages for command with higher
-priority"). Owns the tables and the decision; must not know behaviours, the wire, the clock.
+"""Command priorities and resources: a robot's resources, the sender's rank, priorities, and the
+decision whether a new command may preempt a running one (paper IV.A: "checks incoming messages
+for command with higher priority"). Each command type's level and resources are in
+robot/commands.py. Owns the decision; must not know behaviours, the wire, the clock.
 """
 
 # Theory of operation
@@ -25,7 +26,7 @@ from __future__ import annotations
 import enum
 from dataclasses import dataclass
 
-from rescuemesh.protocol import MessageType, Reason
+from rescuemesh.protocol import Reason
 
 
 class Resource(enum.Flag):
@@ -43,26 +44,8 @@ class Rank(enum.IntEnum):
     OPERATOR = 2
 
 
-@dataclass(frozen=True, slots=True)
-class CommandPolicy:
-    level: int  # priority within a rank, 0..9
-    resources: Resource
-
-
 #: Priority level of motion commands and of a robot's own missions.
 MOTION_LEVEL = 5
-
-COMMAND_POLICY: dict[MessageType, CommandPolicy] = {
-    MessageType.FOLLOW: CommandPolicy(MOTION_LEVEL, Resource.MOTION),
-    MessageType.GOTO: CommandPolicy(MOTION_LEVEL, Resource.MOTION),
-    MessageType.RETURN: CommandPolicy(MOTION_LEVEL, Resource.MOTION),
-    MessageType.MOVE_AROUND: CommandPolicy(MOTION_LEVEL, Resource.MOTION),
-    MessageType.LAND_ON_TOP: CommandPolicy(MOTION_LEVEL, Resource.MOTION),
-    MessageType.SHOW_SCAN: CommandPolicy(3, Resource.LASER),
-    MessageType.SHOW_CAM: CommandPolicy(3, Resource.CAMERA),
-    MessageType.STOP: CommandPolicy(9, Resource.NONE),
-    MessageType.FORWARD_MSG: CommandPolicy(0, Resource.NONE),
-}
 
 #: The reason a TEMPORARILY_REJECTED answer gives, by the resource that is held.
 HELD_REASON: dict[Resource, Reason] = {
@@ -86,21 +69,13 @@ class Priority:
         return not self < other
 
 
-def priority_of(msg_type: MessageType, rank: Rank) -> Priority:
-    return Priority(rank, COMMAND_POLICY[msg_type].level)
-
-
-def resources_of(msg_type: MessageType) -> Resource:
-    return COMMAND_POLICY[msg_type].resources
-
-
-def conflict(new_type: MessageType, new_rank: Rank, held: Resource, running: Priority,
-             also_needs: Resource = Resource.NONE) -> Reason | None:
-    """None when a command of `new_type` from a sender of `new_rank` may start now (it needs nothing
-    that is held, or it outranks what holds it); otherwise the reason to answer TEMPORARILY_REJECTED.
-    `also_needs`: resources beyond the table's (a ShowScan that must drive or turn needs motion)."""
-    overlap = (resources_of(new_type) | also_needs) & held
-    if not overlap or priority_of(new_type, new_rank) >= running:
+def conflict(new: Priority, needs: Resource, held: Resource, running: Priority) -> Reason | None:
+    """None when a command of priority `new` that needs `needs` (robot/commands.py's resources of its
+    type, and any more it needs: a ShowScan that must drive or turn needs motion) may start now (it
+    needs nothing that is held, or it outranks what holds it); otherwise the reason to answer
+    TEMPORARILY_REJECTED."""
+    overlap = needs & held
+    if not overlap or new >= running:
         return None
     for resource, reason in HELD_REASON.items():
         if resource in overlap:

@@ -1,6 +1,6 @@
-"""What a robot's brain keeps and reports: its settings (BrainConfig), its log lines, the commands
-it sent and what became of them, the behaviours it ran and runs, the pose streams it leads, the
-kinds of commands by what they oblige, and the pose conversions to and from the wire.
+"""What a robot's brain keeps and reports: its settings (BrainConfig), its log (a ring of
+robot/events.py's events), the commands it sent and what became of them, the behaviours it ran and
+runs, the pose streams it leads, and the pose conversions to and from the wire.
 
 Owns: these records and tables. Must not know: how the brain decides (robot/brain.py), the
 simulator, the transport, the clock.
@@ -11,12 +11,16 @@ from __future__ import annotations
 import enum
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from rescuemesh.geometry import Pose2D
 from rescuemesh.protocol import EncodeError, MessageType, Pose, Reason, ResultCode
 from rescuemesh.protocol.wire import position_to_units
 from rescuemesh.robot.behaviours import Behaviour
 from rescuemesh.robot.policy import MOTION_LEVEL, Priority, Rank, Resource
+
+if TYPE_CHECKING:
+    from rescuemesh.robot.events import BrainEvent
 
 
 class LinkLossPolicy(enum.Enum):
@@ -79,16 +83,6 @@ class BrainConfig:
     power_on_spread_s: float = 0.0
 
 
-@dataclass(frozen=True, slots=True)
-class BrainEvent:
-    """One line of a robot's log, for result.json and timelines."""
-
-    time_s: float
-    robot: str
-    kind: str
-    detail: str = ""
-
-
 @dataclass
 class OutgoingCommand:
     """A command this robot sent, and what became of it: the latest result and reason reported,
@@ -147,18 +141,6 @@ class Running:
     resources: Resource = Resource.MOTION
     next_report_s: float = 0.0
     paused_for_link: bool = False  # halted by the HOLD link-loss policy, waiting for the commander
-
-
-#: Commands after which the sender streams its pose (PoseUpdates) to the receiver until it ends.
-STREAMED = frozenset({MessageType.FOLLOW, MessageType.LAND_ON_TOP})
-
-#: Commands whose receiver reports IN_PROGRESS with a percentage while it runs them.
-REPORTS_PROGRESS = frozenset({MessageType.GOTO, MessageType.RETURN, MessageType.MOVE_AROUND,
-                              MessageType.SHOW_SCAN, MessageType.SHOW_CAM, MessageType.LAND_ON_TOP})
-
-#: Commands that move the receiver: when one is given up, the sender sends Stop in case it runs.
-MOTION_COMMANDS = frozenset({MessageType.FOLLOW, MessageType.MOVE_AROUND, MessageType.GOTO, MessageType.RETURN,
-                             MessageType.LAND_ON_TOP})
 
 
 def power_on_s(address: int, spread_s: float) -> float:

@@ -20,8 +20,9 @@ from rescuemesh.protocol import (
     ShowCam,
 )
 from rescuemesh.robot.landing import LandOnTopBehaviour
-from rescuemesh.robot.naming import robot_name
-from rescuemesh.robot.policy import Resource, priority_of
+from rescuemesh.robot import events as ev
+from rescuemesh.robot.commands import priority_of
+from rescuemesh.robot.policy import Resource
 from rescuemesh.robot.records import Running
 from rescuemesh.robot.sensor_codec import STREAM_BYTES_PER_S, choose_jpeg, data_budget_bytes, encode_scan
 from rescuemesh.robot.show import ShowBehaviour, sees
@@ -84,7 +85,7 @@ class SensorCommands:
                                   timeout_s=self.config.show_timeout_s)
         if behaviour.finished:  # no viewpoint at all
             self._confirm(event, ResultCode.FAILED, now, reason=behaviour.reason)
-            self._note(now, "command_failed", f"{type(command).__name__}: {behaviour.detail}")
+            self._note(ev.CommandFailed(now, self.name, command.TYPE, behaviour.reason, behaviour.detail))
             return
         running = self._running_for(event, behaviour, now)
         running.resources |= Resource.MOTION  # it may drive to a viewpoint and turn toward it
@@ -112,7 +113,7 @@ class SensorCommands:
                                   command.period_s, command.count, capture, now, pose,
                                   timeout_s=self.config.show_timeout_s, stationary=True)
         self.sensing = self._running_for(event, behaviour, now)
-        self._note(now, "behaviour_started", "show-scan (beside the drive)")
+        self._note(ev.BehaviourStarted(now, self.name, "show-scan", beside=True))
         self._confirm(event, ResultCode.ACCEPTED, now, progress=0)
         return True
 
@@ -136,7 +137,7 @@ class SensorCommands:
         for kind, data in outbox:
             if running.commander is not None and running.seq is not None:
                 self.endpoint.send_data(running.commander, kind, running.seq, data, now)
-                self._note(now, "data_sent", f"{kind.name} {len(data)} B to {robot_name(running.commander)}")
+                self._note(ev.DataSent(now, self.name, kind, len(data), running.commander))
         outbox.clear()
 
     def _on_land_on_top(self, event: CommandReceived, now: float) -> None:

@@ -16,7 +16,7 @@ import numpy as np
 
 from rescuemesh.body import LaserScan
 from rescuemesh.geometry import Pose2D, wrap_angle
-from rescuemesh.nav import Costmap, GoalStatus, NavigateToPose
+from rescuemesh.nav import Costmap, GoalStatus, NavigateToPose, NavReason
 from rescuemesh.protocol import DataKind, Reason, ResultCode
 from rescuemesh.robot.behaviours import STOPPED, Behaviour
 
@@ -122,7 +122,7 @@ class ShowBehaviour(Behaviour):
                 if result.goal_id != self._goal_id:
                     continue
                 if result.status is not GoalStatus.SUCCEEDED:
-                    reason = Reason.NO_PATH if "no path" in str(result.reason) else Reason.STUCK
+                    reason = Reason.NO_PATH if result.reason is NavReason.NO_PATH else Reason.STUCK
                     return self._finish(ResultCode.FAILED, reason, f"to the viewpoint: {result.reason}")
                 self.phase = Phase.AIM
                 return STOPPED

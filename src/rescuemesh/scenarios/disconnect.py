@@ -11,7 +11,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from rescuemesh.protocol import Reason, ResultCode
+from rescuemesh.protocol import MessageType, Reason, ResultCode
+from rescuemesh.robot import events as ev
 from rescuemesh.scenarios.base import ScenarioError, Verdict, no_collisions
 from rescuemesh.scenarios.follow import FollowScenario
 
@@ -95,7 +96,7 @@ class DisconnectScenario(FollowScenario):
         if name == self.follower:
             return any(f.name == "follow" and f.result == ResultCode.FAILED and f.code == Reason.LINK_LOST
                        for f in brain.finished)
-        return any(c.kind == "Follow" and c.result == ResultCode.FAILED and c.reason == Reason.LINK_LOST
+        return any(c.msg_type is MessageType.FOLLOW and c.result == ResultCode.FAILED and c.reason == Reason.LINK_LOST
                    for c in brain.outgoing.values())
 
     def evaluate(self, rt: SimRuntime) -> Verdict:
@@ -140,8 +141,8 @@ class DisconnectScenario(FollowScenario):
             "link_loss_timeout_s": timeout,
             "reconnect_window_s": rt.config.brain.reconnect_window_s,
             "halted_after_s": halt_after,
-            "link_lost_s": self._first(rt, self.follower, "link_lost"),
-            "link_resumed_s": self._first(rt, self.follower, "link_resumed"),
+            "link_lost_s": self._first(rt, self.follower, ev.LinkLost),
+            "link_resumed_s": self._first(rt, self.follower, ev.LinkResumed),
             "follow_failed_link_lost": {"robot_1": leader_failed, "robot_2": follower_failed},
             "goal": [self.goal().x, self.goal().y],
             "halt_position": None if halted is None else _position_at(samples, halted),
@@ -163,8 +164,8 @@ class DisconnectScenario(FollowScenario):
         after = [s.pose for s in rt.trajectories[self.follower] if s.time_s >= failed]
         return round(max(p.distance_to(after[0]) for p in after), 3) if after else None
 
-    def _first(self, rt: SimRuntime, name: str, kind: str):
-        return next((e.time_s for e in rt.brain(name).log if e.kind == kind), None)
+    def _first(self, rt: SimRuntime, name: str, kind: type[ev.BrainEvent]):
+        return next((e.time_s for e in rt.brain(name).log if isinstance(e, kind)), None)
 
 
 def _position_at(samples, t):

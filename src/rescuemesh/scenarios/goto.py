@@ -10,7 +10,8 @@ from typing import TYPE_CHECKING
 import math
 
 from rescuemesh.geometry import Pose2D
-from rescuemesh.protocol import ResultCode
+from rescuemesh.protocol import MessageType, ResultCode
+from rescuemesh.robot import events as ev
 from rescuemesh.scenarios.base import CommandRequest, Scenario, ScenarioError, Verdict, no_collisions
 
 if TYPE_CHECKING:  # annotations only: importing a scenario does not import MuJoCo
@@ -87,8 +88,8 @@ class GotoScenario(Scenario):
             or (self._goto is not None and self._goto.given_up)
 
     def _progress_reports(self, rt: SimRuntime) -> int:
-        return sum(1 for e in rt.brain(self.sender).log if e.kind == "confirm" and "Goto" in e.detail
-                   and "IN_PROGRESS" in e.detail)
+        return sum(1 for e in rt.brain(self.sender).log if isinstance(e, ev.Confirm)
+                   and e.command is MessageType.GOTO and e.result is ResultCode.IN_PROGRESS)
 
     def evaluate(self, rt: SimRuntime) -> Verdict:
         goal = self.goal()

@@ -13,6 +13,7 @@ import math
 import numpy as np
 
 from rescuemesh.protocol import ResultCode
+from rescuemesh.robot import events as ev
 from rescuemesh.robot.behaviours import MoveAroundBehaviour
 from rescuemesh.scenarios.base import CommandRequest, Scenario, ScenarioError, Verdict, no_collisions
 
@@ -100,7 +101,7 @@ class MoveAroundScenario(Scenario):
             rms = float(np.sqrt(np.mean((dist[window] - r) ** 2)))
             theta = np.unwrap(np.arctan2(xy[window, 1] - c.y, xy[window, 0] - c.x))
             angle = float(np.degrees(theta[-1] - theta[0]))
-        skipped = [e.detail for e in rt.brain(self.mover).log if e.kind == "waypoints_skipped"]
+        skipped = [e.indices for e in rt.brain(self.mover).log if isinstance(e, ev.WaypointsSkipped)]
         criteria = [
             ("MoveAround confirmed ACCEPTED", self.result == ResultCode.ACCEPTED),
             ("robot_2 finished the circle", ended is not None and ended.result == ResultCode.DONE),
@@ -113,7 +114,7 @@ class MoveAroundScenario(Scenario):
             "center": [round(c.x, 3), round(c.y, 3)],
             "radius_rms_error_m": None if rms is None else round(rms, 4),
             "angle_covered_deg": None if angle is None else round(angle, 1),
-            "waypoints_skipped": skipped[0].split(", ") if skipped else [],
+            "waypoints_skipped": [str(i) for i in skipped[0]] if skipped else [],
             "circle_time_s": None if not on.size else round(end_s - samples[on[0]].time_s, 2),
             "waypoints": self.waypoints,
         }

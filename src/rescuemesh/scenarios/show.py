@@ -13,6 +13,7 @@ from pathlib import Path
 
 from rescuemesh.geometry import Pose2D
 from rescuemesh.protocol import DataKind, Pose, ResultCode, ShowCam, ShowScan
+from rescuemesh.robot import events as ev
 from rescuemesh.robot.sensor_codec import SensorDecodeError, decode_image, decode_scan, image_is_informative
 from rescuemesh.scenarios.base import CommandRequest, Scenario, ScenarioError, Verdict, no_collisions
 
@@ -105,7 +106,7 @@ class ShowScanScenario(Scenario):
         received = self.received(rt)
         samples = rt.trajectories[self.sensor]
         moved = sum(a.pose.distance_to(b.pose) for a, b in zip(samples, samples[1:]))
-        sent_times = [e.time_s for e in rt.brain(self.sensor).log if e.kind == "data_sent"]
+        sent_times = [e.time_s for e in rt.brain(self.sensor).log if isinstance(e, ev.DataSent)]
         latencies = [round(r[0] - s, 3) for r, s in zip(received, sent_times)]
         good = [r for r in received if self._decoded_ok(r[4])]
         criteria = [

@@ -32,6 +32,7 @@ from rescuemesh.protocol import (
     Stop,
     encode_frame,
 )
+from rescuemesh.robot import events as ev
 from rescuemesh.scenarios.base import Verdict
 from rescuemesh.scenarios.follow import FollowScenario
 
@@ -236,7 +237,7 @@ def _double_executions(rt: SimRuntime) -> int:
     """Commands a robot acted on twice: the same (source, seq) received as new more than once."""
     doubles = 0
     for brain in rt.brains.values():
-        seen = Counter(e.detail.split(")")[0] for e in brain.log if e.kind == "command_received")
+        seen = Counter((e.command, e.src, e.seq) for e in brain.log if isinstance(e, ev.CommandReceived))
         doubles += sum(n - 1 for n in seen.values() if n > 1)
     return doubles
 
@@ -244,15 +245,14 @@ def _double_executions(rt: SimRuntime) -> int:
 def _forged_commands_obeyed(rt: SimRuntime) -> dict[str, int]:
     """Commands robots acted on that their claimed sender never sent, by type ("Stop": 3)."""
     obeyed: Counter = Counter()
+    by_address = {brain.address: brain for brain in rt.brains.values()}
     for brain in rt.brains.values():
         for e in brain.log:
-            if e.kind != "command_received":
+            if not isinstance(e, ev.CommandReceived):
                 continue
-            kind, _, rest = e.detail.partition(" from ")
-            sender, _, seq = rest.partition(" (seq ")
-            claimed = rt.brains.get(sender)
-            if claimed is not None and int(seq.split(")")[0]) not in claimed.outgoing:
-                obeyed[kind] += 1
+            claimed = by_address.get(e.src)
+            if claimed is not None and e.seq not in claimed.outgoing:
+                obeyed[ev.message_name(e.command)] += 1
     return dict(obeyed)
 
 

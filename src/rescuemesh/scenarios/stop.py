@@ -9,6 +9,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from rescuemesh.protocol import ResultCode
+from rescuemesh.robot import events as ev
 from rescuemesh.scenarios.base import CommandRequest, Verdict, no_collisions
 from rescuemesh.scenarios.follow import FollowScenario
 
@@ -59,7 +60,7 @@ class StopScenario(FollowScenario):
             return None
         # Not an earlier automatic Stop (sent when a Follow was given up): the one this scenario sent.
         for event in rt.brain(self.follower).log:
-            if event.kind == "stopped" and event.time_s >= self.stop_sent_s:
+            if isinstance(event, ev.Stopped) and event.time_s >= self.stop_sent_s:
                 return event.time_s
         return None
 

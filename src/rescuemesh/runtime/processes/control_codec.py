@@ -53,12 +53,13 @@ def _registry() -> tuple[dict[str, type], dict[str, type]]:
     from rescuemesh.protocol.endpoint import EndpointStats
     from rescuemesh.robot.behaviours import Waypoint
     from rescuemesh.robot.policy import Rank
-    from rescuemesh.robot.records import BrainConfig, BrainEvent, FinishedBehaviour, LinkLossPolicy, OutgoingCommand
+    from rescuemesh.robot.events import EVENT_TYPES
+    from rescuemesh.robot.records import BrainConfig, FinishedBehaviour, LinkLossPolicy, OutgoingCommand
     from rescuemesh.runtime.config import RadioKind, SimConfig
     from rescuemesh.runtime.processes import control_messages as c
 
     records = [Pose2D, LaserScan, OccupancyGrid, MeshConfig, NeighbourInfo, Transmission, MeshStats, EndpointStats,
-               Waypoint, BrainConfig, BrainEvent, FinishedBehaviour, OutgoingCommand, SimConfig, m.Pose,
+               Waypoint, BrainConfig, *EVENT_TYPES.values(), FinishedBehaviour, OutgoingCommand, SimConfig, m.Pose,
                m.Follow, m.ShowCam, m.ShowScan, m.LandOnTop, m.Goto, m.Stop, m.Return, m.MoveAround,
                *c.MESSAGES]
     enums = [RobotKind, RadioKind, Rank, LinkLossPolicy, m.MessageType, m.ResultCode, m.Reason, m.Capability, m.DataKind,

@@ -23,7 +23,8 @@ from rescuemesh.mesh.stats import MeshStats
 from rescuemesh.protocol import DataKind, Follow, Goto, LandOnTop, MoveAround, Return, ShowCam, ShowScan, Stop
 from rescuemesh.protocol.endpoint import EndpointStats
 from rescuemesh.robot.behaviours import Waypoint
-from rescuemesh.robot.records import BrainEvent, FinishedBehaviour, OutgoingCommand
+from rescuemesh.robot.events import BrainEvent
+from rescuemesh.robot.records import FinishedBehaviour, OutgoingCommand
 from rescuemesh.runtime.config import SimConfig
 
 
