@@ -93,8 +93,8 @@ class BleParams:
       Table 3 (rounded to 0.1 dB; tests check they match the computation).
     - `wall_fresnel_rays`: 9. The wall loss is averaged in power over this many rays spread across
       the horizontal width of the first Fresnel zone, radius r1 = sqrt(lambda d1 d2 / d) (ITU-R
-      P.526-15 eq. 2; Rappaport 4.7.1: an obstacle outside the first Fresnel zone costs little,
-      one blocking part of it part of its loss), instead of priced on the straight line alone.
+      P.526, Fresnel ellipsoids; Rappaport 4.7.1: an obstacle outside the first Fresnel zone
+      costs little, one blocking part of it part of its loss), not priced on the straight line.
       The map's walls are vertical, so their ends, corners and door jambs are vertical edges and
       the horizontal width is the one that matters. 1 is the straight line alone (the model before).
       9: the bundle's loss is then within 0.24 dB on average (95 % within 1.2 dB) of 129 rays' over

@@ -1,8 +1,9 @@
 """How many walls a straight radio path crosses, counted on the map's occupancy grid, and their loss.
 
-Owns: the wall count of a segment (one, between two cells, and one transmitter to many receivers)
-and the sum of the crossed walls' losses given a loss per material code. Must not know: where
-those losses come from (radio/materials.py), radios, the medium.
+Owns: the wall count of a segment (one, between two cells, and one transmitter to many receivers),
+the sum of the crossed walls' losses given a loss per material code, and that sum averaged over
+the first Fresnel zone. Must not know: where those losses come from (radio/materials.py), radios,
+the medium.
 
 Each wall crossed (a run of occupied cells along the path) is priced by the dearest material among
 its cells (the grid's `materials`, 0 when the map tags none): `wall_loss_cells` and `wall_loss_many`
@@ -27,6 +28,14 @@ numpy took 5.0 / 32.8 / 34.5 (a 30-robot convoy counts walls for some 360,000 ne
 form in numpy, so the two agree cell for cell (tests/radio/test_walls.py compares them).
 Limitation: the line is 8-connected, so a diagonal wall one cell thick whose cells touch only at
 corners can be slipped through; the office's walls are axis-aligned and two cells thick.
+
+Across the first Fresnel zone (`wall_loss_fresnel`, `wall_loss_fresnel_many`; BleParams.
+wall_fresnel_rays): the same pricing along a bundle of rays at the lateral offsets s r1(t),
+s evenly spaced in [-1, 1], r1(t) = sqrt(lambda d t (1 - t)) the first Fresnel zone's radius at
+the fraction t of the path (ITU-R P.526), each ray FRESNEL_SEGMENTS straight segments; the rays'
+losses are averaged in power. A wall end, corner or door jamb that only clips the zone costs part
+of its wall (docs/radio.md, "Walls across the first Fresnel zone"). Walls are still counted on the
+straight line. One ray is the straight line: `wall_loss_cells` exactly.
 
 The simulator's channel model is the only user, so this module needs the sim extra (numba).
 """
