@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -146,3 +148,72 @@ def test_a_wall_is_priced_by_its_dearest_cell_where_materials_meet():
     table = np.array([0.0, 2.2, 3.4, 14.8, 1.9, 0.6])
     assert wall_loss_cells(grid, 5, 2, 5, 30, table) == (1, pytest.approx(14.8))
     np.testing.assert_allclose(wall_loss_many(grid, (0.25, 0.55), np.array([[3.05, 0.55]]), table)[1], [14.8])
+
+
+# --- the wall loss averaged over the first Fresnel zone (issue 20) --------------------------------
+_LAMBDA = 299_792_458.0 / 2.44e9
+
+
+@pytest.fixture(scope="module")
+def half_wall() -> OccupancyGrid:
+    """4 m x 4 m at 0.05 m: a wall 0.1 m thick at x 2.0..2.1 from y = 0 up to y = 2.0 (its end),
+    untagged (code 0)."""
+    occ = np.zeros((80, 80), dtype=bool)
+    occ[:40, 40:42] = True
+    return OccupancyGrid(occ, 0.05, 0.0, 0.0)
+
+
+def test_one_ray_is_the_straight_line():
+    from rescuemesh.radio.walls import wall_loss_cells, wall_loss_fresnel
+
+    office = load_map(office_map_path()).grid
+    table = np.array([3.4, 2.2, 3.4, 14.8, 1.9, 0.6])
+    rng = np.random.default_rng(2)
+    for a, b in rng.uniform((0.2, 0.2), (19.3, 9.0), size=(200, 2, 2)):
+        straight = wall_loss_cells(office, *office.world_to_cell(*a), *office.world_to_cell(*b), table)
+        assert wall_loss_fresnel(office, tuple(a), tuple(b), table, _LAMBDA, 0.0, 1) == straight
+
+
+def test_a_wall_end_costs_part_of_its_loss_across_the_fresnel_zone(half_wall):
+    """Paths 3.95 m long crossing x = 2.05 at height y: the straight line pays the whole 10 dB below the
+    wall's end (y < 2.0) and nothing above it; the bundle (9 rays over the first Fresnel zone, radius
+    sqrt(lambda d / 4) = 0.35 m at the wall) ramps from 10 dB to 0 over about +-0.35 m."""
+    from rescuemesh.radio.walls import wall_loss_fresnel
+
+    table = np.array([10.0, 0, 0, 0, 0, 0])
+    r1 = math.sqrt(_LAMBDA * 4.0 / 4)
+    losses = []
+    for y in np.arange(1.2, 2.8, 0.05):
+        walls, loss = wall_loss_fresnel(half_wall, (0.025, y + 0.025), (3.975, y + 0.025), table, _LAMBDA, 0.0, 9)
+        straight = wall_loss_fresnel(half_wall, (0.025, y + 0.025), (3.975, y + 0.025), table, _LAMBDA, 0.0, 1)
+        assert walls == (1 if y < 2.0 else 0) and straight == (walls, 10.0 * walls)
+        losses.append(loss)
+        if y + 0.025 < 2.0 - r1 - 0.05:
+            assert loss == pytest.approx(10.0)  # the whole zone is behind the wall
+        elif y + 0.025 > 2.0 + r1 + 0.05:
+            assert loss == 0.0  # the whole zone is clear
+        elif abs(y + 0.025 - 2.0) < r1 - 0.05:
+            assert 0.0 < loss < 10.0  # the end within the zone: part of the loss
+    assert np.all(np.diff(losses) <= 1e-12)  # less loss as the path rises past the end
+    at_end = wall_loss_fresnel(half_wall, (0.025, 1.975), (3.975, 1.975), table, _LAMBDA, 0.0, 9)[1]
+    # half the rays blocked: -10 log10((5 + 4 / 10) / 9) = 2.2 dB, or with 5 blocked 3.0 dB
+    assert 2.0 < at_end < 3.2
+
+
+def test_the_bundle_is_the_same_both_ways_and_vectorised():
+    from rescuemesh.radio import BleParams
+    from rescuemesh.radio.walls import wall_loss_fresnel, wall_loss_fresnel_many
+
+    office = load_map(office_map_path()).grid
+    table = BleParams().loss_by_code
+    free = np.argwhere(~office.occupied)
+    rng = np.random.default_rng(9)
+    centre = lambda rc: (office.origin_x + (rc[1] + 0.5) * 0.05, office.origin_y + (rc[0] + 0.5) * 0.05)  # noqa: E731
+    a = centre(free[rng.integers(len(free))])
+    pts = np.array([centre(rc) for rc in free[rng.choice(len(free), 300, replace=False)]])
+    walls, loss = wall_loss_fresnel_many(office, a, pts, table, _LAMBDA, 0.3, 9)
+    for p, w, l in zip(pts, walls, loss):
+        assert wall_loss_fresnel(office, a, tuple(p), table, _LAMBDA, 0.3, 9) == (w, l)
+        assert wall_loss_fresnel(office, tuple(p), a, table, _LAMBDA, 0.3, 9)[1] == pytest.approx(l, abs=1e-9)
+        assert w == count_walls(office, a, tuple(p))
+    assert np.any(loss != wall_loss_fresnel_many(office, a, pts, table, _LAMBDA, 0.3, 1)[1])

@@ -60,8 +60,10 @@ CORRELATION_CELL_M = 0.25
 #: Bootstrap resamples for the Danis fit's intervals, and its seed (fixed: same figures every run).
 BOOTSTRAP_RESAMPLES = 400
 BOOTSTRAP_SEED = 0
-#: The model before issue 20: one slope n = 4 from 1 m on the 2D distance, 4.6 dB per wall.
+#: The model before issue 20: one slope n = 4 from 1 m on the 2D distance, 4.6 dB per wall, walls
+#: priced on the straight line alone.
 PREVIOUS_MODEL = {"path_loss_exponent": 4.0, "far_path_loss_exponent": 4.0, "wall_loss_db": 4.6,
+                  "wall_fresnel_rays": 1,
                   **{f"wall_loss_{m.value}_db": 4.6 for m in WallMaterial}}
 
 

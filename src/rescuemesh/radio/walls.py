@@ -1,8 +1,9 @@
 """How many walls a straight radio path crosses, counted on the map's occupancy grid, and their loss.
 
-Owns: the wall count of a segment (one, between two cells, and one transmitter to many receivers)
-and the sum of the crossed walls' losses given a loss per material code. Must not know: where
-those losses come from (radio/materials.py), radios, the medium.
+Owns: the wall count of a segment (one, between two cells, and one transmitter to many receivers),
+the sum of the crossed walls' losses given a loss per material code, and that sum averaged over
+the first Fresnel zone. Must not know: where those losses come from (radio/materials.py), radios,
+the medium.
 
 Each wall crossed (a run of occupied cells along the path) is priced by the dearest material among
 its cells (the grid's `materials`, 0 when the map tags none): `wall_loss_cells` and `wall_loss_many`
@@ -27,6 +28,14 @@ numpy took 5.0 / 32.8 / 34.5 (a 30-robot convoy counts walls for some 360,000 ne
 form in numpy, so the two agree cell for cell (tests/radio/test_walls.py compares them).
 Limitation: the line is 8-connected, so a diagonal wall one cell thick whose cells touch only at
 corners can be slipped through; the office's walls are axis-aligned and two cells thick.
+
+Across the first Fresnel zone (`wall_loss_fresnel`, `wall_loss_fresnel_many`; BleParams.
+wall_fresnel_rays): the same pricing along a bundle of rays at the lateral offsets s r1(t),
+s evenly spaced in [-1, 1], r1(t) = sqrt(lambda d t (1 - t)) the first Fresnel zone's radius at
+the fraction t of the path (ITU-R P.526), each ray FRESNEL_SEGMENTS straight segments; the rays'
+losses are averaged in power. A wall end, corner or door jamb that only clips the zone costs part
+of its wall (docs/radio.md, "Walls across the first Fresnel zone"). Walls are still counted on the
+straight line. One ray is the straight line: `wall_loss_cells` exactly.
 
 The simulator's channel model is the only user, so this module needs the sim extra (numba).
 """
@@ -177,6 +186,100 @@ def _wall_loss_on_line(padded, codes, loss_by_code, r0, c0, r1, c1):  # pragma: 
             in_run = False
         before = occupied
     return walls, loss + (run if in_run else 0.0)
+
+
+#: Straight segments each off-centre ray of the Fresnel bundle is drawn with (it follows the zone's
+#: elliptical edge through SEGMENTS - 1 points; 8 and 16 give wall losses within 0.1 dB on average).
+FRESNEL_SEGMENTS = 8
+
+
+@numba.njit("Tuple((i8, f8))(b1[:, ::1], u1[:, ::1], f8[::1], f8, f8, f8, f8, f8, f8, f8, f8, f8, i8)",
+            cache=True, nogil=True)
+def _fresnel_wall_loss(padded, codes, loss_by_code, ox, oy, res, ax, ay, bx, by, wavelength, dh,
+                       rays):  # pragma: no cover - compiled
+    """(walls on the straight line a -> b, wall loss averaged in power over the first Fresnel zone).
+
+    Ray k (of `rays`) runs at the lateral offset s_k r1(t) from the straight line, s_k evenly spaced
+    in [-1, 1] and r1(t) = sqrt(wavelength d t (1 - t)) the radius of the first Fresnel zone at the
+    fraction t of the path (d: the 3D distance, `dh` the antennas' height difference), drawn as
+    FRESNEL_SEGMENTS straight segments; each segment's walls are priced as `_wall_loss_on_line`
+    prices them (a wall at a joint counts once: a segment that ends inside it counts it, the next,
+    starting inside it, does not). The wall loss is -10 log10 of the mean of 10^(-L_k / 10). The
+    off-centre rays are drawn from the end with the lower (column, row), so a pair gives the same
+    bundle both ways round; s = 0 is the straight line itself, from `a`."""
+    r0 = int(math.floor((ay - oy) / res))
+    c0 = int(math.floor((ax - ox) / res))
+    r1 = int(math.floor((by - oy) / res))
+    c1 = int(math.floor((bx - ox) / res))
+    walls, central = _wall_loss_on_line(padded, codes, loss_by_code, r0, c0, r1, c1)
+    dx = bx - ax
+    dy = by - ay
+    d2 = math.sqrt(dx * dx + dy * dy)
+    if rays <= 1 or d2 == 0.0:
+        return walls, central
+    if (c1, r1) < (c0, r0):  # canonical direction for the off-centre rays
+        ax, ay, bx, by = bx, by, ax, ay
+        r0, c0, r1, c1 = r1, c1, r0, c0
+        dx, dy = -dx, -dy
+    d3 = math.sqrt(dx * dx + dy * dy + dh * dh)
+    nx = -dy / d2
+    ny = dx / d2
+    total = 0.0
+    for k in range(rays):
+        s = -1.0 + 2.0 * k / (rays - 1)
+        if 2 * k == rays - 1:
+            loss = central
+        else:
+            loss = 0.0
+            pr = r0
+            pc = c0
+            for m in range(1, FRESNEL_SEGMENTS + 1):
+                if m == FRESNEL_SEGMENTS:
+                    r = r1
+                    c = c1
+                else:
+                    t = m / FRESNEL_SEGMENTS
+                    off = s * math.sqrt(wavelength * d3 * t * (1.0 - t))
+                    r = int(math.floor((ay + dy * t + ny * off - oy) / res))
+                    c = int(math.floor((ax + dx * t + nx * off - ox) / res))
+                loss += _wall_loss_on_line(padded, codes, loss_by_code, pr, pc, r, c)[1]
+                pr = r
+                pc = c
+        total += 10.0 ** (-loss / 10.0)
+    return walls, -10.0 * math.log10(total / rays)
+
+
+@numba.njit("void(b1[:, ::1], u1[:, ::1], f8[::1], f8, f8, f8, f8, f8, f8[:, ::1], f8, f8, i8, i8[::1], f8[::1])",
+            cache=True, nogil=True)
+def _fresnel_wall_loss_many(padded, codes, loss_by_code, ox, oy, res, ax, ay, points, wavelength, dh, rays,
+                            walls_out, loss_out):  # pragma: no cover - compiled
+    for i in range(points.shape[0]):
+        walls_out[i], loss_out[i] = _fresnel_wall_loss(padded, codes, loss_by_code, ox, oy, res, ax, ay,
+                                                       points[i, 0], points[i, 1], wavelength, dh, rays)
+
+
+def wall_loss_fresnel(grid: OccupancyGrid, a: tuple[float, float], b: tuple[float, float],
+                      loss_by_code: np.ndarray, wavelength_m: float, dh_m: float, rays: int) -> tuple[int, float]:
+    """(walls on the straight line a -> b, wall loss in dB averaged in power over the first Fresnel
+    zone's horizontal width, `rays` rays; module docstring). rays = 1: `wall_loss_cells`'s loss."""
+    return _fresnel_wall_loss(_padded(grid), _padded_codes(grid), np.asarray(loss_by_code, dtype=float),
+                              float(grid.origin_x), float(grid.origin_y), float(grid.resolution),
+                              float(a[0]), float(a[1]), float(b[0]), float(b[1]), float(wavelength_m),
+                              float(dh_m), int(rays))
+
+
+def wall_loss_fresnel_many(grid: OccupancyGrid, a: tuple[float, float], points: np.ndarray,
+                           loss_by_code: np.ndarray, wavelength_m: float, dh_m: float,
+                           rays: int) -> tuple[np.ndarray, np.ndarray]:
+    """`wall_loss_fresnel` from `a` to each of `points` (shape (N, 2), m): (walls, loss) arrays."""
+    pts = np.ascontiguousarray(np.asarray(points, dtype=float).reshape(-1, 2))
+    walls = np.zeros(len(pts), dtype=np.int64)
+    loss = np.zeros(len(pts))
+    _fresnel_wall_loss_many(_padded(grid), _padded_codes(grid), np.asarray(loss_by_code, dtype=float),
+                            float(grid.origin_x), float(grid.origin_y), float(grid.resolution),
+                            float(a[0]), float(a[1]), pts, float(wavelength_m), float(dh_m), int(rays),
+                            walls, loss)
+    return walls, loss
 
 
 def count_walls_many(grid: OccupancyGrid, a: tuple[float, float], points: np.ndarray) -> np.ndarray:

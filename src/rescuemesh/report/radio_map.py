@@ -121,7 +121,7 @@ def write_radio_map(map_model, channel: ChannelModel, tx_xy: tuple[float, float]
     ax.set_xlabel("x [m] (frame map)")
     ax.set_ylabel("y [m]")
     title = f"{map_model.name}: {quantity.value} from ({tx[0]:g}, {tx[1]:g})\n{channel.describe()}"
-    ax.set_title("\n".join(textwrap.wrap(title, 160, replace_whitespace=False)), fontsize=9)
+    ax.set_title("\n".join(part for line in title.split("\n") for part in textwrap.wrap(line, 160)), fontsize=9)
     ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.08), fontsize=8, frameon=False, ncol=4)
     fig.tight_layout()
     out_path = Path(out_path)
