@@ -18,18 +18,14 @@ import yaml
 
 from rescuemesh.experiments.yamlread import Reader
 from rescuemesh.protocol import ResultCode
+from rescuemesh.robot.events import BrainEventKind
 from rescuemesh.scenarios.base import following_error, mean_distance
 
 if TYPE_CHECKING:
     from rescuemesh.experiments.mission import MissionScenario
 
-#: Brain log kinds a `brain_event` metric may name. # typed-events: the BrainEvent kind enum, once typed
-BRAIN_EVENT_KINDS = frozenset({
-    "behaviour_ended", "behaviour_started", "command_denied", "command_failed", "command_given_up",
-    "command_received", "command_rejected", "command_sent", "confirm", "data_received", "data_sent", "follow_ended",
-    "follow_given_up", "forward_accepted", "forward_data", "forward_ended", "forward_sent", "forward_undelivered",
-    "frame_rejected", "link_lost", "link_resumed", "peer_restarted", "pose_fault", "pose_fault_cleared",
-    "report_delivered", "report_dropped", "report_held", "stopped", "transfer_failed", "waypoints_skipped"})
+#: Brain log kinds a `brain_event` metric may name: every kind of brain event.
+BRAIN_EVENT_KINDS = frozenset(k.value for k in BrainEventKind)
 #: An orbit counts from the robot's first sample this close (m) to its circle: the approach is not orbiting.
 ON_CIRCLE_M = 0.1
 
@@ -151,7 +147,7 @@ class Reports:
 class BrainEventTime:
     name: str
     robot: str
-    kind: str
+    kind: BrainEventKind
     start: When
 
 
@@ -331,7 +327,7 @@ def read_timed_metric(r: Reader, node, f: dict, name: str, robots: set[str], ste
         event_kind = r.text(g["kind"], f"{what}.brain_event.kind")
         if event_kind not in BRAIN_EVENT_KINDS:
             raise r.fail(g["kind"], f"{what}.brain_event.kind must be one of {', '.join(sorted(BRAIN_EVENT_KINDS))}")
-        return BrainEventTime(name, robot(g["robot"], "brain_event.robot"), event_kind, when("from"))
+        return BrainEventTime(name, robot(g["robot"], "brain_event.robot"), BrainEventKind(event_kind), when("from"))
     if kind == "moved_into":
         g = r.keys(value, f"{what}.moved_into", {"robot": "a robot", "region": "a region of the map"},
                    required=("robot", "region"))
@@ -446,7 +442,7 @@ def compute(scenario: MissionScenario, metric: TimedMetric, rt, values: dict[str
         if t0 is None:
             return None
         return next((e.time_s for e in rt.brain(metric.robot).log
-                     if e.kind == metric.kind and e.time_s >= t0), None)  # typed-events
+                     if e.kind is metric.kind and e.time_s >= t0), None)
     if isinstance(metric, MovedInto):
         start, end = traj[metric.robot][0].pose, traj[metric.robot][-1].pose
         region_of = scenario.map.region_of
