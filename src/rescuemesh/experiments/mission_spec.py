@@ -67,7 +67,9 @@ class SendCommand:
 @dataclass(frozen=True)
 class Drive:
     robot: str
-    pose: tuple[float, float, float]
+    pose: tuple[float, float, float] | None  # None: `route` or `by`
+    route: tuple[tuple[float, float, float], ...] = ()  # each point once the previous one ended DONE
+    by: tuple[float, float] | None = None  # an offset in the map frame from where the robot is at the start
 
 
 @dataclass(frozen=True)
@@ -81,7 +83,14 @@ class Wait:
     seconds: float
 
 
-Action = SendCommand | Drive | Outage | Wait
+@dataclass(frozen=True)
+class Settle:
+    """Finishes once every one of `robots` has been still (base.settled) since the step started."""
+
+    robots: tuple[str, ...]
+
+
+Action = SendCommand | Drive | Outage | Wait | Settle
 
 
 # --- triggers ---
@@ -118,7 +127,35 @@ class OnLink:
     lost: bool  # True: `robot` stops hearing `peer`; False: hears it (again)
 
 
-Trigger = At | OnStep | OnRegion | OnNear | OnLink
+@dataclass(frozen=True)
+class OnKnows:
+    robot: str
+    peer: str  # `robot` has had `peer`'s Heartbeat (its capabilities and epoch)
+
+
+@dataclass(frozen=True)
+class OnMoving:
+    robot: str
+    speed: float  # m/s, at least
+
+
+@dataclass(frozen=True)
+class OnLanded:
+    robot: str  # a quadrotor that has landed, rotors off
+
+
+@dataclass(frozen=True)
+class OnTeamUp:
+    """Every robot is switched on (settings.power_on_spread) and has had a heartbeat period to hear
+    the others."""
+
+
+@dataclass(frozen=True)
+class OnGivenUp:
+    step: str  # the step's command was given up (every copy failed)
+
+
+Trigger = At | OnStep | OnRegion | OnNear | OnLink | OnKnows | OnMoving | OnLanded | OnTeamUp | OnGivenUp
 
 
 @dataclass(frozen=True)
@@ -128,6 +165,9 @@ class Step:
     after_s: float
     action: Action
     armed_by: str | None = None  # the trigger is checked only once this step has finished
+    attempts: int = 3  # a command: how many copies the mission sends if the protocol gives one up
+    at_latest: float | None = None  # the step starts at this time at the latest, its trigger held or not
+    data_wait_s: float | None = None  # a ShowScan/ShowCam: s to wait after its final result for data (None: 5)
 
 
 # --- criteria and metrics ---
@@ -169,9 +209,27 @@ class MetricBound:
     metric: str
     minimum: float | None
     maximum: float | None
+    relative_to: str | None = None  # the bounds are shares of this metric's value
 
 
-Criterion = StepResult | StepData | EndsIn | EndsNear | NoCollision | MetricBound
+@dataclass(frozen=True)
+class StepFinished:
+    step: str
+
+
+@dataclass(frozen=True)
+class StepDecoded:
+    step: str
+    at_least: int  # data items that decode (scans; images that show something)
+
+
+@dataclass(frozen=True)
+class LandsOn:
+    robot: str
+    carrier: str  # `robot` ends resting on `carrier`'s top plate, rotors off
+
+
+Criterion = StepResult | StepData | EndsIn | EndsNear | NoCollision | MetricBound | StepFinished | StepDecoded | LandsOn
 
 
 @dataclass(frozen=True)
@@ -193,7 +251,9 @@ class PathLength:
     robot: str
 
 
-Metric = Distance | TimeTo | PathLength
+from rescuemesh.experiments.measures import Measure  # noqa: E402  (the larger metric vocabulary)
+
+Metric = Distance | TimeTo | PathLength | Measure
 
 
 @dataclass(frozen=True)
@@ -211,6 +271,8 @@ class Settings:
     relay: bool = True
     radio: str = "ble"
     secure: bool = True
+    follow_distance_m: float | None = None  # None: the brain's default (1 m, the paper's)
+    power_on_spread_s: float | None = None  # None: the brain's default
 
 
 @dataclass(frozen=True)
@@ -225,6 +287,8 @@ class Mission:
     steps: tuple[Step, ...]
     criteria: tuple[Criterion, ...]
     metrics: tuple[Metric, ...] = field(default_factory=tuple)
+    end_after_s: float = 2.0  # the mission ends this long after its last step finished
+    stop_when: tuple[Trigger, ...] = ()  # any of these ends the mission at once
 
     @staticmethod
     def load(path: str | Path) -> "Mission":
@@ -236,7 +300,8 @@ class Mission:
 
 _TOP = {"mission": "its name", "summary": "one line on what it shows", "map": "office, or a map file",
         "time_limit": "simulated seconds", "settings": "loss, relay, radio, secure", "team": "the robots",
-        "steps": "the script", "criteria": "what success means", "metrics": "figures to report"}
+        "steps": "the script", "criteria": "what success means", "metrics": "figures to report",
+        "end_after": "s after the last step finishes (default 2)", "stop_when": "events that end the mission"}
 _RESULTS = {r.name.lower(): r for r in ResultCode}
 
 
@@ -259,7 +324,7 @@ def load_mission(path: Path) -> Mission:
     steps = _steps(r, top["steps"], names)
     step_names = {s.name for s in steps}
     for step in steps:
-        for other in (step.trigger.step if isinstance(step.trigger, OnStep) else None, step.armed_by):
+        for other in (step.trigger.step if isinstance(step.trigger, (OnStep, OnGivenUp)) else None, step.armed_by):
             if other is not None and other not in step_names:
                 raise r.fail(top["steps"], f"step {step.name!r} waits for step {other!r}, which does not exist")
     metrics = tuple(_metric(r, item, names, step_names) for item in r.sequence(top["metrics"], "metrics")) \
@@ -269,18 +334,30 @@ def load_mission(path: Path) -> Mission:
         raise r.fail(top["metrics"], "metrics: a name is used twice")
     criteria = tuple(_criterion(r, item, names, step_names, set(metric_names))
                      for item in r.sequence(top["criteria"], "criteria"))
-    return Mission(name, path, summary, map_path, limit, settings, team, steps, criteria, metrics)
+    end_after = r.number(top["end_after"], "end_after", minimum=0.0) if "end_after" in top else 2.0
+    stop_when = tuple(_trigger(r, item, "stop_when", names) for item in r.sequence(top["stop_when"], "stop_when")) \
+        if "stop_when" in top else ()
+    for trigger in stop_when:
+        if isinstance(trigger, (OnStep, OnGivenUp)) and trigger.step not in step_names:
+            raise r.fail(top["stop_when"], f"stop_when waits for step {trigger.step!r}, which does not exist")
+    return Mission(name, path, summary, map_path, limit, settings, team, steps, criteria, metrics, end_after,
+                   stop_when)
 
 
 def _settings(r: Reader, node) -> Settings:
     f = r.keys(node, "settings", {"loss": "in [0, 1)", "relay": "true or false", "radio": "ble or disc",
-                                  "secure": "true or false"})
+                                  "secure": "true or false", "follow_distance": "m a follower keeps",
+                                  "power_on_spread": "s over which the team is switched on"})
     loss = r.number(f["loss"], "settings.loss", minimum=0.0) if "loss" in f else 0.0
     if loss >= 1.0:
         raise r.fail(f["loss"], f"settings.loss must be below 1, got {loss!r}")
     return Settings(loss, r.flag(f["relay"], "settings.relay") if "relay" in f else True,
                     r.text(f["radio"], "settings.radio", ("ble", "disc")) if "radio" in f else "ble",
-                    r.flag(f["secure"], "settings.secure") if "secure" in f else True)
+                    r.flag(f["secure"], "settings.secure") if "secure" in f else True,
+                    r.number(f["follow_distance"], "settings.follow_distance", above=0.0)
+                    if "follow_distance" in f else None,
+                    r.number(f["power_on_spread"], "settings.power_on_spread", minimum=0.0)
+                    if "power_on_spread" in f else None)
 
 
 def _team(r: Reader, node) -> dict[str, RobotSpec]:
@@ -357,8 +434,10 @@ _STEP_KEYS = {"name": "a name other steps and criteria use", "at": "simulated ti
               "on": "an event (docs/missions.md)", "after": "s to wait after the event",
               "after_step": "a step that must have finished before the trigger is checked",
               "command": "{from, to, type, ...}", "drive": "{robot, to: [X, Y, YAW]}",
-              "outage": "{robot, seconds}", "wait": "s"}
-_ACTIONS = ("command", "drive", "outage", "wait")
+              "outage": "{robot, seconds}", "wait": "s", "settle": "[ROBOT, ...]: until they are still",
+              "attempts": "a command: copies sent at most (default 3)",
+              "at_latest": "s: the step starts then at the latest", "data_wait": "s to wait for data (default 5)"}
+_ACTIONS = ("command", "drive", "outage", "wait", "settle")
 
 
 def _steps(r: Reader, node, names: set[str]) -> tuple[Step, ...]:
@@ -377,7 +456,9 @@ def _steps(r: Reader, node, names: set[str]) -> tuple[Step, ...]:
         trigger = At(r.number(f["at"], f"{what}.at", minimum=0.0)) if "at" in f else _trigger(r, f["on"], what, names)
         after = r.number(f["after"], f"{what}.after", minimum=0.0) if "after" in f else 0.0
         armed_by = r.text(f["after_step"], f"{what}.after_step") if "after_step" in f else None
-        steps.append(Step(name, trigger, after, _action(r, actions[0], f[actions[0]], what, names), armed_by))
+        action = _action(r, actions[0], f[actions[0]], what, names)
+        extra = _step_extras(r, f, what, action)
+        steps.append(Step(name, trigger, after, action, armed_by, **extra))
     return tuple(steps)
 
 
@@ -394,8 +475,9 @@ def _action(r: Reader, kind: str, node, what: str, names: set[str]) -> Action:
         command = _command_from_fields(r, node, f, f"{what}.command", names)
         return SendCommand(sender, receiver, command)
     if kind == "drive":
-        f = r.keys(node, f"{what}.drive", {"robot": "who drives", "to": "[X, Y, YAW]"}, required=("robot", "to"))
-        return Drive(_robot(r, f["robot"], f"{what}.drive.robot", names), r.point(f["to"], f"{what}.drive.to", yaw=True))
+        return _drive(r, node, what, names)
+    if kind == "settle":
+        return Settle(tuple(_robot(r, item, f"{what}.settle", names) for item in r.sequence(node, f"{what}.settle")))
     f = r.keys(node, f"{what}.outage", {"robot": "whose radio", "seconds": "how long"}, required=("robot", "seconds"))
     return Outage(_robot(r, f["robot"], f"{what}.outage.robot", names),
                   r.number(f["seconds"], f"{what}.outage.seconds", above=0.0))
@@ -410,7 +492,10 @@ def _command_from_fields(r: Reader, node, fields: dict, what: str, names: set[st
 
 _TRIGGER_KEYS = {"step": "a step's name", "result": "a result (accepted, in_progress, done, failed, ...)",
                  "robot": "a robot", "enters": "a region of the map", "within": "m", "of": "a robot or [X, Y]",
-                 "loses": "a robot it stops hearing", "hears": "a robot it hears (again)"}
+                 "loses": "a robot it stops hearing", "hears": "a robot it hears (again)",
+                 "knows": "a robot whose Heartbeat it has had", "moving": "m/s, at least",
+                 "landed": "true: a quadrotor has landed, rotors off", "team_up": "true: the whole team is on",
+                 "given_up": "true, with step: its command was given up"}
 
 
 def _near(r: Reader, f: dict, what: str, names: set[str]):
@@ -422,6 +507,9 @@ def _near(r: Reader, f: dict, what: str, names: set[str]):
 
 def _trigger(r: Reader, node, what: str, names: set[str]) -> Trigger:
     f = r.keys(node, f"{what}.on", _TRIGGER_KEYS)
+    more = _more_trigger(r, node, f, what, names)
+    if more is not None:
+        return more
     if "step" in f:
         if set(f) - {"step", "result"}:
             raise r.fail(node, f"{what}.on: a step event takes `step` and optionally `result`")
@@ -447,7 +535,9 @@ def _trigger(r: Reader, node, what: str, names: set[str]) -> Trigger:
 _CRITERION_KEYS = {"step": "a command step", "result": "its result", "within": "s, or m with `of`",
                    "data": "how many data items it must bring back", "robot": "a robot",
                    "ends_in": "a region", "of": "a robot or [X, Y]", "no_collision": "true",
-                   "metric": "a metric's name", "min": "lowest allowed", "max": "highest allowed"}
+                   "metric": "a metric's name", "min": "lowest allowed", "max": "highest allowed",
+                   "finished": "true: the step finished", "decoded": "how many data items must decode",
+                   "lands_on": "a robot whose top plate it ends on", "relative_to": "a metric the bounds are shares of"}
 
 
 def _criterion(r: Reader, node, names: set[str], steps: set[str], metrics: set[str]) -> Criterion:
@@ -460,16 +550,26 @@ def _criterion(r: Reader, node, names: set[str], steps: set[str], metrics: set[s
         metric = r.text(f["metric"], "metric")
         if metric not in metrics:
             raise r.fail(f["metric"], f"unknown metric {metric!r}; the mission's metrics: {', '.join(sorted(metrics))}")
-        if set(f) - {"metric", "min", "max"} or not ({"min", "max"} & set(f)):
-            raise r.fail(node, "a metric criterion takes `min`, `max` or both")
+        if set(f) - {"metric", "min", "max", "relative_to"} or not ({"min", "max"} & set(f)):
+            raise r.fail(node, "a metric criterion takes `min`, `max` or both (and optionally `relative_to`)")
+        relative = r.text(f["relative_to"], "relative_to") if "relative_to" in f else None
+        if relative is not None and relative not in metrics:
+            raise r.fail(f["relative_to"], f"unknown metric {relative!r}; the mission's metrics: "
+                                           f"{', '.join(sorted(metrics))}")
         return MetricBound(metric, r.number(f["min"], "min") if "min" in f else None,
-                           r.number(f["max"], "max") if "max" in f else None)
+                           r.number(f["max"], "max") if "max" in f else None, relative)
     if "step" in f:
         step = r.text(f["step"], "step")
         if step not in steps:
             raise r.fail(f["step"], f"unknown step {step!r}")
         if "data" in f:
             return StepData(step, r.whole(f["data"], "data", minimum=1))
+        if "decoded" in f:
+            return StepDecoded(step, r.whole(f["decoded"], "decoded", minimum=1))
+        if "finished" in f:
+            if set(f) != {"step", "finished"} or not r.flag(f["finished"], "finished"):
+                raise r.fail(node, "a finished criterion is `{step: S, finished: true}`")
+            return StepFinished(step)
         if "result" not in f:
             raise r.fail(node, "a step criterion takes `result` (and optionally `within` s) or `data`")
         return StepResult(step, _result(r, f["result"], "result"),
@@ -478,6 +578,8 @@ def _criterion(r: Reader, node, names: set[str], steps: set[str], metrics: set[s
         robot = _robot(r, f["robot"], "robot", names)
         if "ends_in" in f:
             return EndsIn(robot, r.text(f["ends_in"], "ends_in"))
+        if "lands_on" in f:
+            return LandsOn(robot, _robot(r, f["lands_on"], "lands_on", names))
         if "within" in f and "of" in f:
             other, point = _near(r, f, "criterion", names)
             return EndsNear(robot, r.number(f["within"], "within", above=0.0), other, point)
@@ -486,10 +588,14 @@ def _criterion(r: Reader, node, names: set[str], steps: set[str], metrics: set[s
 
 
 def _metric(r: Reader, node, names: set[str], steps: set[str]) -> Metric:
+    from rescuemesh.experiments.measures import MEASURES, read_measure
+
     f = r.keys(node, "a metric", {"name": "its name in result.json", "distance": "[ROBOT, ROBOT] at the end",
                                   "time_to": "{step, result}: s from the step's start",
-                                  "path_length": "a robot: m driven"}, required=("name",))
+                                  "path_length": "a robot: m driven", **MEASURES}, required=("name",))
     name = r.text(f["name"], "metric name")
+    if set(f) & set(MEASURES):
+        return read_measure(r, node, f, name, names, steps)
     if "distance" in f:
         items = r.sequence(f["distance"], "distance")
         if len(items) != 2:
@@ -503,4 +609,66 @@ def _metric(r: Reader, node, names: set[str], steps: set[str]) -> Metric:
         return TimeTo(name, step, _result(r, g["result"], "time_to.result"))
     if "path_length" in f:
         return PathLength(name, _robot(r, f["path_length"], "path_length", names))
-    raise r.fail(node, "a metric is one of distance, time_to, path_length")
+    raise r.fail(node, f"a metric is one of distance, time_to, path_length, {', '.join(MEASURES)}")
+
+
+# --- additions for the built-in scenarios as missions (issue 18) ----------------------------------------
+
+def _step_extras(r: Reader, f: dict, what: str, action) -> dict:
+    """A step's optional `attempts`, `at_latest` and `data_wait`, checked against its action."""
+    extra = {}
+    if "attempts" in f:
+        if not isinstance(action, SendCommand):
+            raise r.fail(f["attempts"], f"{what}: `attempts` applies to a command step")
+        extra["attempts"] = r.whole(f["attempts"], f"{what}.attempts", minimum=1, maximum=100)
+    if "at_latest" in f:
+        extra["at_latest"] = r.number(f["at_latest"], f"{what}.at_latest", minimum=0.0)
+    if "data_wait" in f:
+        inner = action.command.inner if isinstance(action, SendCommand) and action.command.inner else \
+            (action.command if isinstance(action, SendCommand) else None)
+        if inner is None or inner.type not in (CommandType.SHOW_SCAN, CommandType.SHOW_CAM):
+            raise r.fail(f["data_wait"], f"{what}: `data_wait` applies to a show_scan or show_cam command")
+        extra["data_wait_s"] = r.number(f["data_wait"], f"{what}.data_wait", minimum=0.0)
+    return extra
+
+
+def _drive(r: Reader, node, what: str, names: set[str]) -> Drive:
+    f = r.keys(node, f"{what}.drive", {"robot": "who drives", "to": "[X, Y, YAW]",
+                                       "route": "[[X, Y, YAW], ...]: one point after another",
+                                       "by": "[DX, DY]: m from where it is, in the map frame"},
+               required=("robot",))
+    robot = _robot(r, f["robot"], f"{what}.drive.robot", names)
+    forms = [k for k in ("to", "route", "by") if k in f]
+    if len(forms) != 1:
+        raise r.fail(node, f"{what}.drive takes one of `to`, `route` or `by`")
+    if "to" in f:
+        return Drive(robot, r.point(f["to"], f"{what}.drive.to", yaw=True))
+    if "by" in f:
+        return Drive(robot, None, by=r.point(f["by"], f"{what}.drive.by"))
+    route = tuple(r.point(item, f"{what}.drive.route", yaw=True) for item in r.sequence(f["route"], f"{what}.drive.route"))
+    return Drive(robot, None, route=route)
+
+
+def _more_trigger(r: Reader, node, f: dict, what: str, names: set[str]) -> Trigger | None:
+    """The triggers added for the built-ins (knows, moving, landed, team_up, given_up), or None."""
+    if "team_up" in f:
+        if set(f) != {"team_up"} or not r.flag(f["team_up"], f"{what}.on.team_up"):
+            raise r.fail(node, f"{what}.on: team_up stands alone, as `team_up: true`")
+        return OnTeamUp()
+    if "given_up" in f:
+        if set(f) != {"step", "given_up"} or not r.flag(f["given_up"], f"{what}.on.given_up"):
+            raise r.fail(node, f"{what}.on: given_up is `{{step: S, given_up: true}}`")
+        return OnGivenUp(r.text(f["step"], f"{what}.on.step"))
+    forms = [k for k in ("knows", "moving", "landed") if k in f]
+    if not forms:
+        return None
+    if set(f) != {"robot", forms[0]}:
+        raise r.fail(node, f"{what}.on: `{forms[0]}` takes `robot` and nothing else")
+    robot = _robot(r, f["robot"], f"{what}.on.robot", names)
+    if forms[0] == "knows":
+        return OnKnows(robot, _robot(r, f["knows"], f"{what}.on.knows", names))
+    if forms[0] == "moving":
+        return OnMoving(robot, r.number(f["moving"], f"{what}.on.moving", above=0.0))
+    if not r.flag(f["landed"], f"{what}.on.landed"):
+        raise r.fail(f["landed"], f"{what}.on: landed takes `true`")
+    return OnLanded(robot)
