@@ -298,8 +298,12 @@ class MissionScenario(Scenario):
                 d = self._distance(rt, c.robot, c.other, c.point)
                 of = c.other if c.other is not None else f"({c.point[0]:g}, {c.point[1]:g})"
                 criteria.append((f"{c.robot} ends within {c.distance:g} m of {of} ({d:.2f} m)", d <= c.distance))
+            elif isinstance(c, MetricBound) and c.equals:
+                value = _metric_named(metrics, c.metric)
+                criteria.append((f"{c.metric} is {c.equals[0]!r} ({value!r})", value == c.equals[0]
+                                 and isinstance(value, bool) == isinstance(c.equals[0], bool)))
             elif isinstance(c, MetricBound):
-                value = metrics.get(c.metric)
+                value = _metric_named(metrics, c.metric)
                 scale = 1.0 if c.relative_to is None else metrics.get(c.relative_to)
                 ok = value is not None and scale is not None and \
                     (c.minimum is None or value >= c.minimum * scale) and \
@@ -422,6 +426,14 @@ class MissionScenario(Scenario):
             return (f"{c.robot} ends on {c.carrier}'s top plate, rotors off ({on}, rotors "
                     f"{'off' if off else 'on'})", on == c.carrier and off)
         raise TypeError(c)
+
+
+def _metric_named(metrics: dict, name: str):
+    """A metric's value by name; GROUP.PART names a part of a group metric."""
+    if name in metrics or "." not in name:
+        return metrics.get(name)
+    group, part = name.split(".", 1)
+    return (metrics.get(group) or {}).get(part)
 
 
 def _decodes(item) -> bool:

@@ -210,6 +210,7 @@ class MetricBound:
     minimum: float | None
     maximum: float | None
     relative_to: str | None = None  # the bounds are shares of this metric's value
+    equals: tuple = ()  # (VALUE,): the metric must equal VALUE (a name, true/false, a number)
 
 
 @dataclass(frozen=True)
@@ -332,7 +333,7 @@ def load_mission(path: Path) -> Mission:
     metric_names = [m.name for m in metrics]
     if len(set(metric_names)) != len(metric_names):
         raise r.fail(top["metrics"], "metrics: a name is used twice")
-    criteria = tuple(_criterion(r, item, names, step_names, set(metric_names))
+    criteria = tuple(_criterion(r, item, names, step_names, set(metric_names) | _group_parts(metrics))
                      for item in r.sequence(top["criteria"], "criteria"))
     end_after = r.number(top["end_after"], "end_after", minimum=0.0) if "end_after" in top else 2.0
     stop_when = tuple(_trigger(r, item, "stop_when", names) for item in r.sequence(top["stop_when"], "stop_when")) \
@@ -537,7 +538,8 @@ _CRITERION_KEYS = {"step": "a command step", "result": "its result", "within": "
                    "ends_in": "a region", "of": "a robot or [X, Y]", "no_collision": "true",
                    "metric": "a metric's name", "min": "lowest allowed", "max": "highest allowed",
                    "finished": "true: the step finished", "decoded": "how many data items must decode",
-                   "lands_on": "a robot whose top plate it ends on", "relative_to": "a metric the bounds are shares of"}
+                   "lands_on": "a robot whose top plate it ends on", "relative_to": "a metric the bounds are shares of",
+                   "equals": "the value a metric must have"}
 
 
 def _criterion(r: Reader, node, names: set[str], steps: set[str], metrics: set[str]) -> Criterion:
@@ -550,8 +552,13 @@ def _criterion(r: Reader, node, names: set[str], steps: set[str], metrics: set[s
         metric = r.text(f["metric"], "metric")
         if metric not in metrics:
             raise r.fail(f["metric"], f"unknown metric {metric!r}; the mission's metrics: {', '.join(sorted(metrics))}")
+        if "equals" in f:
+            if set(f) != {"metric", "equals"}:
+                raise r.fail(node, "a metric criterion takes `equals` alone, or `min`, `max` or both")
+            return MetricBound(metric, None, None, None, (r.scalar(f["equals"]),))
         if set(f) - {"metric", "min", "max", "relative_to"} or not ({"min", "max"} & set(f)):
-            raise r.fail(node, "a metric criterion takes `min`, `max` or both (and optionally `relative_to`)")
+            raise r.fail(node, "a metric criterion takes `min`, `max` or both (and optionally `relative_to`), "
+                               "or `equals`")
         relative = r.text(f["relative_to"], "relative_to") if "relative_to" in f else None
         if relative is not None and relative not in metrics:
             raise r.fail(f["relative_to"], f"unknown metric {relative!r}; the mission's metrics: "
@@ -672,3 +679,10 @@ def _more_trigger(r: Reader, node, f: dict, what: str, names: set[str]) -> Trigg
     if not r.flag(f["landed"], f"{what}.on.landed"):
         raise r.fail(f["landed"], f"{what}.on: landed takes `true`")
     return OnLanded(robot)
+
+
+def _group_parts(metrics) -> set[str]:
+    """GROUP.PART names of the parts of group metrics (a criterion may name one)."""
+    from rescuemesh.experiments.measures import Measure
+
+    return {f"{m.name}.{part.name}" for m in metrics if isinstance(m, Measure) and m.kind == "group" for part in m.arg}
