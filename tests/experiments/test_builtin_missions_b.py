@@ -1,0 +1,106 @@
+"""The built-in scenarios relay, disconnect, convoy, show-scan and land-on-top, written as mission files
+in missions/, give the built-in's verdict and every metric it reports (same names, same values) on
+the same seed and loss: the mission issues the same commands at the same ticks (issue 18 item 1).
+
+`make test` runs seed 0 without loss (the convoy with the smallest team it takes, 2, cut from
+missions/convoy.yaml); `make test-slow` runs seeds 0-2 with and without 0.2 extra loss, the convoy
+with its default team of 6 as the file has it.
+"""
+
+import re
+from pathlib import Path
+
+import pytest
+import yaml
+
+from rescuemesh.experiments.mission import MissionScenario
+from rescuemesh.experiments.mission_spec import load_mission
+from rescuemesh.maps import load_map, office_map_path
+from rescuemesh.scenarios import ScenarioOptions
+from rescuemesh.scenarios.convoy import ConvoyScenario
+from rescuemesh.scenarios.runner import run_scenario
+
+MISSIONS = Path(__file__).resolve().parents[2] / "missions"
+SCENARIOS = ("relay", "disconnect", "convoy", "show-scan", "land-on-top")
+
+
+def run_builtin(name: str, seed: int, loss: float, **options):
+    return run_scenario(name, ScenarioOptions(seed=seed, loss=loss, **options)).result
+
+
+def run_mission(path: Path, seed: int, loss: float):
+    mission = load_mission(path)
+    options = MissionScenario.options_for(mission, seed, loss=loss)
+    scenario = MissionScenario(mission, options, load_map(mission.map_path or office_map_path()))
+    return run_scenario(None, options, scenario=scenario).result
+
+
+def assert_same(builtin: dict, mission: dict) -> None:
+    """The mission's verdict is the built-in's, and every metric the built-in reports is the mission's
+    (the mission adds its steps' STEP_started_s, STEP_finished_s and STEP_result)."""
+    failed = [c["check"] for c in mission["criteria"] if not c["ok"]]
+    assert mission["success"] == builtin["success"], (builtin["criteria"], failed)
+    differ = {name: (value, mission["metrics"].get(name, "missing"))
+              for name, value in builtin["metrics"].items() if mission["metrics"].get(name, "missing") != value}
+    assert not differ, differ
+
+
+class _Loader(yaml.SafeLoader):
+    """YAML 1.1 without `on`/`off`/`yes`/`no` as booleans (a step's `on:` stays the word, as the
+    mission reader has it)."""
+
+
+_Loader.yaml_implicit_resolvers = {
+    first: [(tag, regexp) for tag, regexp in resolvers if tag != "tag:yaml.org,2002:bool"]
+    for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()}
+_Loader.add_implicit_resolver("tag:yaml.org,2002:bool", re.compile(r"^(?:true|True|TRUE|false|False|FALSE)$"),
+                              list("tTfF"))
+
+
+def convoy_of(n: int, tmp_path: Path) -> Path:
+    """missions/convoy.yaml cut to the first `n` robots, with the starts the built-in gives a team of
+    `n` (it places the team behind robot_1 by its size)."""
+    doc = yaml.load((MISSIONS / "convoy.yaml").read_text(), Loader=_Loader)
+    team = [f"robot_{k}" for k in range(1, n + 1)]
+    links = {f"link_{k}" for k in range(1, n)}
+    last = f"link_{n - 1}"
+    starts = ConvoyScenario(ScenarioOptions(robots=n), load_map(office_map_path())).starts()
+    doc["team"] = {name: {"start": [starts[name].x, starts[name].y, starts[name].yaw]} for name in team}
+    doc["stop_when"] = [e for e in doc["stop_when"] if e["step"] in links]
+    steps = [s for s in doc["steps"] if s["name"] in links or s["name"] in ("route", "settle")]
+    for step in steps:
+        if step["name"] == "route":
+            step["on"]["step"] = last
+        if step["name"] == "settle":
+            step["settle"] = team
+    doc["steps"] = steps
+    doc["criteria"] = [c for c in doc["criteria"] if c.get("step", "route") in links | {"route"}
+                       and c.get("robot", "robot_1") in team]
+    for metric in doc["metrics"]:
+        for spec in metric.values():
+            if isinstance(spec, dict) and "robots" in spec:
+                spec["robots"] = team
+            if isinstance(spec, dict) and spec.get("from", "").startswith("link_"):
+                spec["from"] = last
+        if metric.get("finished", "").startswith("link_"):
+            metric["finished"] = last
+    path = tmp_path / f"convoy-{n}.yaml"
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return path
+
+
+@pytest.mark.parametrize("name", [s for s in SCENARIOS if s != "convoy"])
+def test_the_mission_file_gives_the_builtins_verdict_and_metrics(name):
+    assert_same(run_builtin(name, 0, 0.0), run_mission(MISSIONS / f"{name}.yaml", 0, 0.0))
+
+
+def test_the_convoy_mission_cut_to_two_robots_gives_the_builtins_verdict_and_metrics(tmp_path):
+    assert_same(run_builtin("convoy", 0, 0.0, robots=2), run_mission(convoy_of(2, tmp_path), 0, 0.0))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("loss", [0.0, 0.2])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("name", SCENARIOS)
+def test_the_mission_file_gives_the_builtins_verdict_and_metrics_on_seeds_0_to_2(name, seed, loss):
+    assert_same(run_builtin(name, seed, loss), run_mission(MISSIONS / f"{name}.yaml", seed, loss))
