@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 from rescuemesh.experiments.mission import MissionScenario
-from rescuemesh.experiments.mission_spec import load_mission
+from rescuemesh.experiments.mission_spec import Drive, MissionError, OnGivenUp, OnLanded, load_mission
 from rescuemesh.maps import load_map, office_map_path
 from rescuemesh.scenarios import ScenarioOptions
 from rescuemesh.scenarios.convoy import ConvoyScenario
@@ -104,3 +104,64 @@ def test_the_convoy_mission_cut_to_two_robots_gives_the_builtins_verdict_and_met
 @pytest.mark.parametrize("name", SCENARIOS)
 def test_the_mission_file_gives_the_builtins_verdict_and_metrics_on_seeds_0_to_2(name, seed, loss):
     assert_same(run_builtin(name, seed, loss), run_mission(MISSIONS / f"{name}.yaml", seed, loss))
+
+
+BASE = """\
+mission: t
+team:
+  robot_1: {}
+  robot_2: {}
+steps:
+  - name: go
+    at: 0.5
+    command: {from: robot_1, to: robot_2, type: show_scan, spot: [3.0, 4.6]}
+  - name: leg
+    on: {step: go}
+    drive: {robot: robot_1, by: [1.0, 0.0]}
+criteria:
+  - {step: go, result: done}
+metrics:
+  - {name: gap, gaps: {robots: [robot_1, robot_2]}}
+"""
+
+
+@pytest.mark.parametrize("change, line, words", [
+    (("    drive: {robot: robot_1, by", "    attempts: 2\n    drive: {robot: robot_1, by"), 11,
+     "`attempts` applies to a command step"),
+    (("    on: {step: go}\n", "    on: {step: go}\n    data_wait: 3\n"), 11, "`data_wait` applies to a show_scan"),
+    (("by: [1.0, 0.0]}", "by: [1.0, 0.0], to: [1.0, 1.0]}"), 11, "takes one of `to`, `route` or `by`"),
+    (("on: {step: go}", "on: {step: go, given_up: 3}"), 10, "given_up must be true or false"),
+    (("on: {step: go}", "on: {robot: robot_1, moving: 0}"), 10, "moving must be more than 0"),
+    (("on: {step: go}", "on: {robot: robot_1, knows: robot_2, within: 2}"), 10, "`knows` takes `robot`"),
+    (("{step: go, result: done}", "{metric: gap, min: 1, relative_to: speed}"), 13, "unknown metric 'speed'"),
+    (("{step: go, result: done}", "{metric: gap, equals: 1, max: 2}"), 13, "takes `equals` alone"),
+    (("gaps: {robots: [robot_1, robot_2]}", "gaps: {robots: [robot_1]}"), 15, "a chain has at least two robots"),
+    (("gaps: {robots: [robot_1, robot_2]}", "gaps: {robots: [robot_1, robot_2], stat: median}"), 15,
+     "stat must be one of min, mean, max, all"),
+    (("{name: gap, gaps", "{name: gap, data: leg, gaps"), 15, "one kind per metric"),
+    (("{name: gap, gaps: {robots: [robot_1, robot_2]}}", "{name: gap, started: nowhere}"), 15,
+     "unknown step 'nowhere'"),
+    (("metrics:\n", "stop_when:\n  - {step: gone, given_up: true}\nmetrics:\n"), 15, "step 'gone'"),
+    (("mission: t\n", "mission: t\nend_after: -1\n"), 2, "end_after must be at least 0"),
+])
+def test_a_bad_addition_names_the_file_the_line_and_what_was_expected(tmp_path, change, line, words):
+    path = tmp_path / "m.yaml"
+    assert change[0] in BASE
+    path.write_text(BASE.replace(*change))
+    with pytest.raises(MissionError) as caught:
+        load_mission(path)
+    message = str(caught.value)
+    assert message.startswith(f"{path}:{line}: "), message
+    assert words in message and "\n" not in message
+
+
+def test_the_additions_read_into_typed_values(tmp_path):
+    path = tmp_path / "m.yaml"
+    path.write_text(BASE.replace("    on: {step: go}\n", "    on: {robot: robot_2, landed: true}\n    at_latest: 9\n")
+                    .replace("metrics:\n", "end_after: 0\nstop_when:\n  - {step: go, given_up: true}\nmetrics:\n"))
+    m = load_mission(path)
+    leg = m.steps[1]
+    assert leg.trigger == OnLanded("robot_2") and leg.at_latest == 9.0
+    assert leg.action == Drive("robot_1", None, by=(1.0, 0.0))
+    assert m.end_after_s == 0.0 and m.stop_when == (OnGivenUp("go"),)
+    assert m.metrics[0].kind == "gaps" and m.metrics[0].arg == (("robot_1", "robot_2"), "all")
