@@ -21,7 +21,7 @@ from rescuemesh.scenarios.convoy import ConvoyScenario
 from rescuemesh.scenarios.runner import run_scenario
 
 MISSIONS = Path(__file__).resolve().parents[2] / "missions"
-SCENARIOS = ("relay", "disconnect", "convoy", "show-scan", "land-on-top")
+SCENARIOS = ("relay", "disconnect", "convoy", "show-scan", "land-on-top", "priority")
 
 
 def run_builtin(name: str, seed: int, loss: float, **options):
@@ -36,13 +36,17 @@ def run_mission(path: Path, seed: int, loss: float):
 
 
 def assert_same(builtin: dict, mission: dict) -> None:
-    """The mission's verdict is the built-in's, and every metric the built-in reports is the mission's
-    (the mission adds its steps' STEP_started_s, STEP_finished_s and STEP_result)."""
+    """The mission's verdict is the built-in's, every metric the built-in reports is the mission's
+    (the mission adds its steps' STEP_started_s, STEP_finished_s and STEP_result), and the run ended
+    on the same tick with the same protocol and network counters."""
     failed = [c["check"] for c in mission["criteria"] if not c["ok"]]
     assert mission["success"] == builtin["success"], (builtin["criteria"], failed)
     differ = {name: (value, mission["metrics"].get(name, "missing"))
               for name, value in builtin["metrics"].items() if mission["metrics"].get(name, "missing") != value}
     assert not differ, differ
+    # the same commands at the same ticks: the run ends on the same tick, with the same traffic
+    assert mission["sim_time_s"] == builtin["sim_time_s"]
+    assert mission["protocol"] == builtin["protocol"] and mission["network"] == builtin["network"]
 
 
 class _Loader(yaml.SafeLoader):

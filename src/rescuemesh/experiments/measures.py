@@ -43,7 +43,8 @@ MEASURES = {
     "outage_outcome": "an outage step: resume, fail or either (the link-loss rule)",
     "command_failed": "{step, reason}: its command ended FAILED with that reason at its sender",
     "behaviour_failed": "{robot, behaviour, reason}: the robot's behaviour ended FAILED with that reason",
-    "team_size": "true: robots in the team",
+    "team_size": "true: robots in the team", "ranks": "true: each robot's rank",
+    "answer": "a command step: [RESULT, REASON] of its answered copy, now",
     "gaps": "{robots: [...], stat: min, mean, max or all}: final distances along the chain",
     "following": "{robots: [...], from: STEP, to: STEP}: mean distance along the chain in the window",
     "following_error": "{robots: [...], from: STEP, to: STEP}: distance minus the following distance",
@@ -88,7 +89,7 @@ def read_measure(r, node, f: dict, name: str, names: set[str], steps: set[str]) 
         return Measure(name, kind, trigger)
     if kind in ("started", "finished", "duration", "confirm_hops", "sends", "attempts", "target_of",
                 "region_of_target", "data", "data_bytes", "data_hops", "first_data_after", "data_latency",
-                "outage_outcome"):
+                "outage_outcome", "answer"):
         return Measure(name, kind, step(value))
     if kind in ("frames_relayed", "landed_on"):
         return Measure(name, kind, _robot(r, value, what, names))
@@ -105,7 +106,7 @@ def read_measure(r, node, f: dict, name: str, names: set[str], steps: set[str]) 
         return Measure(name, kind, r.text(value, what, _SETTINGS))
     if kind == "config":
         return Measure(name, kind, r.text(value, what, _CONFIG))
-    if kind == "team_size":
+    if kind in ("team_size", "ranks"):
         if not r.flag(value, what):
             raise r.fail(value, f"{what} takes `true`")
         return Measure(name, kind, True)
@@ -189,6 +190,8 @@ def value_of(m: Measure, sc, rt) -> Any:
                 "follow_distance_m": brain.follow_distance_m}[arg]
     if kind == "team_size":
         return len(sc.robots)
+    if kind == "ranks":
+        return {name: robot.rank.name for name, robot in sc.mission.team.items()}
     if kind == "frames_relayed":
         return rt.stacks[arg].node.stats.relayed
     if kind == "frames_received":
@@ -260,6 +263,8 @@ def _step_value(kind: str, arg, state, sc, rt) -> Any:
             request.brain.outgoing[s].result == ResultCode.FAILED and request.brain.outgoing[s].reason == arg[1]
             for s in request.seqs)
     answered = None if request is None else request.confirmed()
+    if kind == "answer":
+        return None if answered is None else [answered.result.name, answered.reason.name]
     if kind == "confirm_hops":
         return None if answered is None else answered.hops
     if kind == "sends":

@@ -16,7 +16,7 @@ from rescuemesh.body import FlightPhase, RobotKind
 from rescuemesh.experiments.mission_spec import (
     At, CommandSpec, CommandType, Distance, Drive, EndsIn, EndsNear, Mission, MetricBound, NoCollision, OnLink,
     OnNear, OnRegion, OnStep, Outage, PathLength, RobotModel, SendCommand, Step, StepData, StepResult, TimeTo, Wait,
-    LandsOn, OnGivenUp, OnKnows, OnLanded, OnMoving, OnTeamUp, Settle, StepDecoded, StepFinished)
+    LandsOn, OnAnswered, OnGivenUp, OnKnows, StepAnswer, OnLanded, OnMoving, OnTeamUp, Settle, StepDecoded, StepFinished)
 from rescuemesh.experiments.measures import Measure, time_of_events, value_of
 from rescuemesh.geometry import Pose2D
 from rescuemesh.protocol import (Follow, ForwardMsg, Goto, LandOnTop, MoveAround, Pose, ResultCode, Return, ShowCam,
@@ -51,6 +51,7 @@ class StepState:
     results: dict[ResultCode, float] = field(default_factory=dict)  # each result seen -> first time, in s
     drive: object | None = None  # the Running a drive started
     was_heard: bool = False  # a `loses` trigger: its peer was heard at some point
+    answers: dict = field(default_factory=dict)  # each (result, reason) seen -> first time, in s
     poses_at_start: dict | None = None  # every robot's pose when the step started (displacement metrics)
     route_left: list = field(default_factory=list)  # a drive's route points still to go
     goal: Pose2D | None = None  # a drive's current goal
@@ -149,6 +150,10 @@ class MissionScenario(Scenario):
                     self._start(state, rt)
             if state.started_s is not None and state.finished_s is None:
                 self._poll(state, rt)
+            elif state.finished_s is not None and state.request is not None:  # later results (CANCELLED, ...)
+                sent = _latest_answered(state.request)
+                if sent is not None and sent.result is not None:
+                    self._note_answer(state, sent, now)
         if self._all_done_s is None and all(s.finished_s is not None for s in self.states):
             self._all_done_s = now
         for metric, watch in self._watched:
@@ -209,7 +214,7 @@ class MissionScenario(Scenario):
             state.request.poll(now)
             sent = _latest_answered(state.request)
             if sent is not None and sent.result is not None:
-                state.results.setdefault(sent.result, now)
+                self._note_answer(state, sent, now)
                 final = sent.result in FINAL_RESULTS or (sent.result == ResultCode.ACCEPTED
                                                  and action.command.type in _ACCEPTED_IS_FINAL)
                 if final and sent.seq != state.request.seqs[-1] and not state.request.brain.outgoing[
@@ -217,6 +222,7 @@ class MissionScenario(Scenario):
                     final = False  # an older copy ended (replaced by our newer one, say): the newer one decides
                 if final and self._awaits_data(state, rt, now):
                     final = False
+                final = final or state.step.finish_on_answer
                 if final:
                     state.finished_s = now
             elif state.request.given_up:
@@ -349,6 +355,8 @@ class MissionScenario(Scenario):
             config = rt.config.brain
             last = max(power_on_s(robot_address(name), config.power_on_spread_s) for name in self.robots)
             return rt.time >= (last + config.heartbeat_period_s if last > 0.0 else 0.0)
+        if isinstance(trigger, OnAnswered):
+            return bool(self._by_name[trigger.step].results)
         if isinstance(trigger, OnGivenUp):
             request = self._by_name[trigger.step].request
             return request is not None and request.given_up
@@ -410,7 +418,16 @@ class MissionScenario(Scenario):
         action = state.step.action
         return action.command.target or action.receiver
 
+    @staticmethod
+    def _note_answer(state: StepState, sent, now: float) -> None:
+        state.results.setdefault(sent.result, now)
+        state.answers.setdefault((sent.result, sent.reason), now)
+
     def _criterion_more(self, c, rt: SimRuntime) -> tuple[str, bool]:
+        if isinstance(c, StepAnswer):
+            seen = self._by_name[c.step].answers.get((c.result, c.reason))
+            when = "" if seen is None else f" at {seen:.1f} s"
+            return (f"step {c.step}: {c.result.name} ({c.reason.name}){when}", seen is not None)
         if isinstance(c, StepFinished):
             when = self._by_name[c.step].finished_s
             return (f"step {c.step} finished" + ("" if when is None else f" at {when:.1f} s"), when is not None)

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from rescuemesh.experiments.yamlread import Reader, read_yaml
-from rescuemesh.protocol import ResultCode
+from rescuemesh.protocol import Reason, ResultCode
 from rescuemesh.robot.policy import Rank
 
 MAX_FILE_BYTES = 256 * 1024
@@ -151,11 +151,16 @@ class OnTeamUp:
 
 
 @dataclass(frozen=True)
+class OnAnswered:
+    step: str  # the step's command has had its first answer (any result) at its sender
+
+
+@dataclass(frozen=True)
 class OnGivenUp:
     step: str  # the step's command was given up (every copy failed)
 
 
-Trigger = At | OnStep | OnRegion | OnNear | OnLink | OnKnows | OnMoving | OnLanded | OnTeamUp | OnGivenUp
+Trigger = At | OnStep | OnRegion | OnNear | OnLink | OnKnows | OnMoving | OnLanded | OnTeamUp | OnGivenUp | OnAnswered
 
 
 @dataclass(frozen=True)
@@ -168,6 +173,7 @@ class Step:
     attempts: int = 3  # a command: how many copies the mission sends if the protocol gives one up
     at_latest: float | None = None  # the step starts at this time at the latest, its trigger held or not
     data_wait_s: float | None = None  # a ShowScan/ShowCam: s to wait after its final result for data (None: 5)
+    finish_on_answer: bool = False  # a command step finishes at its first answer, not at its final result
 
 
 # --- criteria and metrics ---
@@ -214,6 +220,13 @@ class MetricBound:
 
 
 @dataclass(frozen=True)
+class StepAnswer:
+    step: str
+    result: ResultCode
+    reason: Reason  # S's command had this result with this reason at its sender
+
+
+@dataclass(frozen=True)
 class StepFinished:
     step: str
 
@@ -230,7 +243,8 @@ class LandsOn:
     carrier: str  # `robot` ends resting on `carrier`'s top plate, rotors off
 
 
-Criterion = StepResult | StepData | EndsIn | EndsNear | NoCollision | MetricBound | StepFinished | StepDecoded | LandsOn
+Criterion = (StepResult | StepData | EndsIn | EndsNear | NoCollision | MetricBound | StepFinished | StepDecoded | LandsOn
+             | StepAnswer)
 
 
 @dataclass(frozen=True)
@@ -325,7 +339,8 @@ def load_mission(path: Path) -> Mission:
     steps = _steps(r, top["steps"], names)
     step_names = {s.name for s in steps}
     for step in steps:
-        for other in (step.trigger.step if isinstance(step.trigger, (OnStep, OnGivenUp)) else None, step.armed_by):
+        for other in (step.trigger.step if isinstance(step.trigger, (OnStep, OnGivenUp, OnAnswered)) else None,
+                      step.armed_by):
             if other is not None and other not in step_names:
                 raise r.fail(top["steps"], f"step {step.name!r} waits for step {other!r}, which does not exist")
     metrics = tuple(_metric(r, item, names, step_names) for item in r.sequence(top["metrics"], "metrics")) \
@@ -339,7 +354,7 @@ def load_mission(path: Path) -> Mission:
     stop_when = tuple(_trigger(r, item, "stop_when", names) for item in r.sequence(top["stop_when"], "stop_when")) \
         if "stop_when" in top else ()
     for trigger in stop_when:
-        if isinstance(trigger, (OnStep, OnGivenUp)) and trigger.step not in step_names:
+        if isinstance(trigger, (OnStep, OnGivenUp, OnAnswered)) and trigger.step not in step_names:
             raise r.fail(top["stop_when"], f"stop_when waits for step {trigger.step!r}, which does not exist")
     return Mission(name, path, summary, map_path, limit, settings, team, steps, criteria, metrics, end_after,
                    stop_when)
@@ -437,6 +452,7 @@ _STEP_KEYS = {"name": "a name other steps and criteria use", "at": "simulated ti
               "command": "{from, to, type, ...}", "drive": "{robot, to: [X, Y, YAW]}",
               "outage": "{robot, seconds}", "wait": "s", "settle": "[ROBOT, ...]: until they are still",
               "attempts": "a command: copies sent at most (default 3)",
+              "finish": "a command: `answered` (finished at its first answer)",
               "at_latest": "s: the step starts then at the latest", "data_wait": "s to wait for data (default 5)"}
 _ACTIONS = ("command", "drive", "outage", "wait", "settle")
 
@@ -465,7 +481,7 @@ def _steps(r: Reader, node, names: set[str]) -> tuple[Step, ...]:
 
 def _action(r: Reader, kind: str, node, what: str, names: set[str]) -> Action:
     if kind == "wait":
-        return Wait(r.number(node, f"{what}.wait", above=0.0))
+        return Wait(r.number(node, f"{what}.wait", minimum=0.0))
     if kind == "command":
         f = r.keys(node, f"{what}.command", dict(_COMMAND_KEYS, **{"from": "the sender", "to": "the receiver"}),
                    required=("from", "to", "type"))
@@ -496,7 +512,8 @@ _TRIGGER_KEYS = {"step": "a step's name", "result": "a result (accepted, in_prog
                  "loses": "a robot it stops hearing", "hears": "a robot it hears (again)",
                  "knows": "a robot whose Heartbeat it has had", "moving": "m/s, at least",
                  "landed": "true: a quadrotor has landed, rotors off", "team_up": "true: the whole team is on",
-                 "given_up": "true, with step: its command was given up"}
+                 "given_up": "true, with step: its command was given up",
+                 "answered": "true, with step: its command had an answer"}
 
 
 def _near(r: Reader, f: dict, what: str, names: set[str]):
@@ -539,7 +556,7 @@ _CRITERION_KEYS = {"step": "a command step", "result": "its result", "within": "
                    "metric": "a metric's name", "min": "lowest allowed", "max": "highest allowed",
                    "finished": "true: the step finished", "decoded": "how many data items must decode",
                    "lands_on": "a robot whose top plate it ends on", "relative_to": "a metric the bounds are shares of",
-                   "equals": "the value a metric must have"}
+                   "equals": "the value a metric must have", "reason": "with result: the reason it came with"}
 
 
 def _criterion(r: Reader, node, names: set[str], steps: set[str], metrics: set[str]) -> Criterion:
@@ -579,6 +596,13 @@ def _criterion(r: Reader, node, names: set[str], steps: set[str], metrics: set[s
             return StepFinished(step)
         if "result" not in f:
             raise r.fail(node, "a step criterion takes `result` (and optionally `within` s) or `data`")
+        if "reason" in f:
+            if set(f) != {"step", "result", "reason"}:
+                raise r.fail(node, "a reason criterion is `{step: S, result: X, reason: Y}`")
+            text = r.text(f["reason"], "reason").upper()
+            if text not in Reason.__members__:
+                raise r.fail(f["reason"], f"reason must be one of {', '.join(m.lower() for m in Reason.__members__)}")
+            return StepAnswer(step, _result(r, f["result"], "result"), Reason[text])
         return StepResult(step, _result(r, f["result"], "result"),
                           r.number(f["within"], "within", above=0.0) if "within" in f else None)
     if "robot" in f:
@@ -636,6 +660,11 @@ def _step_extras(r: Reader, f: dict, what: str, action) -> dict:
         if inner is None or inner.type not in (CommandType.SHOW_SCAN, CommandType.SHOW_CAM):
             raise r.fail(f["data_wait"], f"{what}: `data_wait` applies to a show_scan or show_cam command")
         extra["data_wait_s"] = r.number(f["data_wait"], f"{what}.data_wait", minimum=0.0)
+    if "finish" in f:
+        if not isinstance(action, SendCommand):
+            raise r.fail(f["finish"], f"{what}: `finish` applies to a command step")
+        r.text(f["finish"], f"{what}.finish", ("answered",))
+        extra["finish_on_answer"] = True
     return extra
 
 
@@ -662,6 +691,10 @@ def _more_trigger(r: Reader, node, f: dict, what: str, names: set[str]) -> Trigg
         if set(f) != {"team_up"} or not r.flag(f["team_up"], f"{what}.on.team_up"):
             raise r.fail(node, f"{what}.on: team_up stands alone, as `team_up: true`")
         return OnTeamUp()
+    if "answered" in f:
+        if set(f) != {"step", "answered"} or not r.flag(f["answered"], f"{what}.on.answered"):
+            raise r.fail(node, f"{what}.on: answered is `{{step: S, answered: true}}`")
+        return OnAnswered(r.text(f["step"], f"{what}.on.step"))
     if "given_up" in f:
         if set(f) != {"step", "given_up"} or not r.flag(f["given_up"], f"{what}.on.given_up"):
             raise r.fail(node, f"{what}.on: given_up is `{{step: S, given_up: true}}`")
