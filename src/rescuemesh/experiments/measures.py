@@ -65,7 +65,7 @@ class Measure:
 
 def read_measure(r, node, f: dict, name: str, names: set[str], steps: set[str]) -> Measure:
     """Read a metric mapping whose kind is a MEASURES key; errors name the line."""
-    from rescuemesh.experiments.mission_spec import OnGivenUp, OnStep, _result, _robot, _trigger
+    from rescuemesh.experiments.mission_spec import OnGivenUp, OnStep, _robot, _trigger
 
     kinds = [k for k in f if k in MEASURES]
     if len(kinds) != 1 or set(f) - {"name", kinds[0]}:
