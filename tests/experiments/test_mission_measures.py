@@ -68,6 +68,8 @@ def test_the_new_vocabulary_reads_into_typed_values(tmp_path):
     (("{step: go, result: [failed, denied], at_receiver: true}", "{step: go, at_receiver: true}"), 11,
      "at_receiver goes with `result`"),
     (("{step: go, result: [failed, denied], at_receiver: true}", "{step: go, started: true, given_up: true}"), 11,
+     "given_up is `{step: S, given_up: true}`"),
+    (("{step: go, result: [failed, denied], at_receiver: true}", "{step: go, started: true, result: done}"), 11,
      "stands alone beside `step`"),
     (("speed_at_least: 0.2}", "speed_at_least: 0.2, within: 1}"), 14, "stand alone beside `robot`"),
     (("not_before: 1.0", "not_before: soon"), 15, "not_before must be a finite number"),

@@ -12,22 +12,24 @@ import math
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
-from rescuemesh.body import RobotKind
+from rescuemesh.body import FlightPhase, RobotKind
+from rescuemesh.experiments.measures import Measure, time_of_events, value_of
 from rescuemesh.experiments.mission_measures import MovedInto, compute
 from rescuemesh.experiments.mission_spec import (
-    At, CommandSpec, CommandType, Distance, Drive, EndMission, EndsIn, EndsNear, Mission, MetricBound, NoCollision,
-    OnLink, OnNear, OnRegion, OnSettled, OnSpeed, OnStep, Outage, PathLength, RobotModel, SendCommand, Step, StepData,
-    StepResult, TimeTo, Wait)
+    At, CommandSpec, CommandType, Distance, Drive, EndMission, EndsIn, EndsNear, LandsOn, Mission, MetricBound,
+    NoCollision, OnAnswered, OnGivenUp, OnKnows, OnLanded, OnLink, OnMoving, OnNear, OnRegion, OnSettled, OnSpeed,
+    OnStep, OnTeamUp, Outage, PathLength, RobotModel, SendCommand, Settle, Step, StepAnswer, StepData, StepDecoded,
+    StepFinished, StepResult, TimeTo, Wait)
 from rescuemesh.geometry import Pose2D
 from rescuemesh.protocol import (Follow, ForwardMsg, Goto, LandOnTop, MoveAround, Pose, ResultCode, Return, ShowCam,
                                  ShowScan, Stop, encode_inner)
 from rescuemesh.robot import robot_address
 from rescuemesh.robot.forwarding import FINAL_RESULTS  # results after which a command does no more
-from rescuemesh.robot.records import to_wire_pose
+from rescuemesh.robot.records import power_on_s, to_wire_pose
 from rescuemesh.runtime import RadioKind
 from rescuemesh.robot.behaviours import MoveAroundBehaviour
-from rescuemesh.scenarios.base import (CommandRequest, Scenario, ScenarioError, ScenarioOptions, Verdict, no_collisions,
-                                       settled)
+from rescuemesh.scenarios.base import (CommandRequest, Scenario, ScenarioError, ScenarioOptions, Verdict, last_result,
+                                       no_collisions, settled)
 from rescuemesh.scenarios.move_around import waypoint_table
 
 if TYPE_CHECKING:
@@ -60,6 +62,12 @@ class StepState:
     waypoints: list[dict] = field(default_factory=list)
     skipped: list[str] = field(default_factory=list)
 
+    answers: dict = field(default_factory=dict)  # each (result, reason) seen -> first time, in s
+    poses_at_start: dict | None = None  # every robot's pose when the step started (displacement metrics)
+    route_left: list = field(default_factory=list)  # a drive's route points still to go
+    goal: Pose2D | None = None  # a drive's current goal
+    late: bool = False  # started by its `at_latest` time, not by its trigger
+
     def reports(self, result: ResultCode) -> int:
         """How many reports with `result` the sender got for this step's command (every copy)."""
         if self.request is None:
@@ -86,6 +94,10 @@ class MissionScenario(Scenario):
         self._configured = False
         self._all_done_s: float | None = None
         self._end_now = False  # an `end` step has started
+        self._stopped = False  # a stop_when event held
+        self._stop_states = [StepState(Step("stop_when", t, 0.0, Wait(1.0))) for t in mission.stop_when]
+        self._watched = [(m, StepState(Step(m.name, m.arg, 0.0, Wait(1.0)))) for m in time_of_events(mission.metrics)]
+        self.event_times: dict[str, float] = {}  # a time_of metric's name -> when its event first held
         super().__init__(options, map_model)
 
     def state(self, step: str) -> StepState:
@@ -131,7 +143,8 @@ class MissionScenario(Scenario):
                                     f"(regions: {', '.join(regions) or 'none'})")
             action = state.step.action
             if isinstance(action, Drive):
-                self.require_free(f"step {state.step.name!r}'s drive target", Pose2D(*action.pose))
+                for pose in ((action.pose,) if action.pose is not None else action.route):
+                    self.require_free(f"step {state.step.name!r}'s drive target", Pose2D(*pose))
         for criterion in self.mission.criteria:
             if isinstance(criterion, EndsIn) and criterion.region not in regions:
                 raise ScenarioError(f"{self.mission.path}: criterion ends_in {criterion.region!r}: map "
@@ -151,7 +164,13 @@ class MissionScenario(Scenario):
         config = super().sim_config()
         kinds = {name: RobotKind.FLYING for name, r in self.mission.team.items() if r.model is RobotModel.QUADROTOR}
         ranks = {robot_address(name): r.rank for name, r in self.mission.team.items()}
-        return replace(config, kinds=kinds, brain=replace(config.brain, ranks=ranks))
+        brain = replace(config.brain, ranks=ranks)
+        s = self.mission.settings
+        if s.follow_distance_m is not None:
+            brain = replace(brain, follow_distance_m=s.follow_distance_m)
+        if s.power_on_spread_s is not None:
+            brain = replace(brain, power_on_spread_s=s.power_on_spread_s)
+        return replace(config, kinds=kinds, brain=brain)
 
     # --- the script ---
 
@@ -169,19 +188,32 @@ class MissionScenario(Scenario):
                     and now >= state.step.not_before_s - 1e-9
                 if state.triggered_s is None and armed and self._fires(state, rt):
                     state.triggered_s = now
-                if state.triggered_s is not None and now >= state.triggered_s + state.step.after_s - 1e-9:
+                if state.triggered_s is None and state.step.at_latest is not None and \
+                        now >= state.step.at_latest - 1e-9:
+                    state.triggered_s, state.late = now, True
+                after = 0.0 if state.late else state.step.after_s
+                if state.triggered_s is not None and now >= state.triggered_s + after - 1e-9:
                     self._start(state, rt)
             if state.started_s is not None and state.finished_s is None:
                 self._poll(state, rt)
+            elif state.finished_s is not None and state.request is not None:  # later results (CANCELLED, ...)
+                sent = _latest_answered(state.request)
+                if sent is not None and sent.result is not None:
+                    self._note_answer(state, sent, now)
             if state.request is not None and not state.receiver_results:
                 self._watch_receiver(state, rt)
         if self._all_done_s is None and all(s.finished_s is not None for s in self.states):
             self._all_done_s = now
+        for metric, watch in self._watched:
+            if metric.name not in self.event_times and self._fires(watch, rt):
+                self.event_times[metric.name] = now
+        if not self._stopped and any(self._fires(s, rt) for s in self._stop_states):
+            self._stopped = True
 
     def finished(self, rt: SimRuntime) -> bool:
-        if self._end_now:  # an `end` step started
+        if self._end_now or self._stopped:  # an `end` step started, or a stop_when event held
             return True
-        return self._all_done_s is not None and rt.time >= self._all_done_s + self.mission.end_after_s
+        return self._all_done_s is not None and rt.time >= self._all_done_s + self.mission.end_after_s - 1e-9
 
     def _watch_receiver(self, state: StepState, rt: SimRuntime) -> None:
         """Note when the receiver runs this step's command (any copy) and the result it ends it with."""
@@ -210,8 +242,6 @@ class MissionScenario(Scenario):
             other = self._by_name[trigger.step]
             if trigger.started:
                 return other.started_s is not None
-            if trigger.given_up:
-                return other.request is not None and other.request.given_up
             if trigger.result is None:
                 return other.finished_s is not None
             seen = other.receiver_results if trigger.at_receiver else other.results
@@ -225,26 +255,32 @@ class MissionScenario(Scenario):
         if isinstance(trigger, OnRegion):
             pose = rt.trajectories[trigger.robot][-1].pose
             return self.map.region_of(pose.x, pose.y) == trigger.region
-        if isinstance(trigger, OnNear):
-            return self._distance(rt, trigger.robot, trigger.other, trigger.point) <= trigger.distance
+        if isinstance(trigger, OnNear):  # where the robots are now (trajectories get this tick's pose after it)
+            pose = rt.world.bodies[trigger.robot].pose()
+            there = rt.world.bodies[trigger.other].pose() if trigger.other is not None else \
+                Pose2D(trigger.point[0], trigger.point[1], 0.0)
+            return math.hypot(pose.x - there.x, pose.y - there.y) <= trigger.distance
         if isinstance(trigger, OnLink):
             heard = rt.brain(trigger.robot).network.is_reachable(robot_address(trigger.peer), rt.time)
             if not trigger.lost:
                 return heard
             state.was_heard = state.was_heard or heard  # losing needs having heard it first
             return state.was_heard and not heard
-        raise TypeError(trigger)
+        return self._fires_more(trigger, rt)
 
     def _start(self, state: StepState, rt: SimRuntime) -> None:
         now, action = rt.time, state.step.action
         state.started_s = now
-        if isinstance(action, SendCommand):
+        state.poses_at_start = {name: rt.world.bodies[name].pose() for name in self.robots}
+        if isinstance(action, Drive) and action.pose is None:
+            self._start_drive(state, rt)
+        elif isinstance(action, SendCommand):
             brain = rt.brain(action.sender)
             if action.command.type is CommandType.STOP:  # as a user's Stop: it also ends a pose stream to the peer
                 send = brain.command_stop
             else:
                 send = (lambda peer, t, b=brain, c=action.command: b.send(peer, _message(c, b), t))
-            state.request = CommandRequest(brain, action.receiver, send)
+            state.request = CommandRequest(brain, action.receiver, send, attempts=state.step.attempts)
             state.request.poll(now)
         elif isinstance(action, Drive):
             brain = rt.brain(action.robot)
@@ -262,7 +298,7 @@ class MissionScenario(Scenario):
             state.request.poll(now)
             sent = _latest_answered(state.request)
             if sent is not None and sent.result is not None:
-                state.results.setdefault(sent.result, now)
+                self._note_answer(state, sent, now)
                 final = sent.result in FINAL_RESULTS or (sent.result == ResultCode.ACCEPTED
                                                  and action.command.type in _ACCEPTED_IS_FINAL)
                 if final and sent.seq != state.request.seqs[-1] and not state.request.brain.outgoing[
@@ -270,18 +306,17 @@ class MissionScenario(Scenario):
                     final = False  # an older copy ended (replaced by our newer one, say): the newer one decides
                 if final and self._awaits_data(state, rt, now):
                     final = False
+                final = final or state.step.finish_on_answer
                 if final:
                     state.finished_s = now
             elif state.request.given_up:
                 state.finished_s = now
         elif isinstance(action, Drive):
-            brain = rt.brain(action.robot)
-            if brain.running is not state.drive:
+            if rt.brain(action.robot).running is not state.drive:
+                self._drive_ended(state, rt)
+        elif isinstance(action, Settle):
+            if all(settled(rt, name, state.started_s) for name in action.robots):
                 state.finished_s = now
-                ended = next((f for f in reversed(brain.finished) if f.started_s == state.drive.started_s
-                              and f.name == state.drive.behaviour.name), None) if state.drive is not None else None
-                if ended is not None:  # the drive's outcome: DONE when it arrived
-                    state.results.setdefault(ended.result, now)
         elif isinstance(action, Outage):
             if now >= state.started_s + action.seconds - 1e-9:
                 rt.set_radio(action.robot, True)
@@ -300,7 +335,8 @@ class MissionScenario(Scenario):
         if command.type not in (CommandType.SHOW_SCAN, CommandType.SHOW_CAM) or \
                 ResultCode.DONE not in state.results:
             return False
-        return self._data_count(state, rt) < command.count and now < state.results[ResultCode.DONE] + DATA_GRACE_S
+        grace = DATA_GRACE_S if state.step.data_wait_s is None else state.step.data_wait_s
+        return self._data_count(state, rt) < command.count and now < state.results[ResultCode.DONE] + grace
 
     # --- the verdict ---
 
@@ -314,19 +350,23 @@ class MissionScenario(Scenario):
     def _metric_values(self, rt: SimRuntime) -> dict[str, float | None]:
         values: dict[str, float | None] = {}
         for metric in self.mission.metrics:
-            if isinstance(metric, Distance):
-                values[metric.name] = round(self._distance(rt, metric.robots[0], metric.robots[1], None), 3)
-            elif isinstance(metric, TimeTo):
-                state = self._by_name[metric.step]
-                seen = state.results.get(metric.result)
-                values[metric.name] = None if seen is None or state.started_s is None else \
-                    round(seen - state.started_s, 3)
-            elif isinstance(metric, PathLength):
-                samples = rt.trajectories[metric.robot]
-                values[metric.name] = round(sum(a.pose.distance_to(b.pose) for a, b in zip(samples, samples[1:])), 3)
-            else:  # the metrics over moments and windows (experiments/mission_measures.py)
-                values[metric.name] = compute(self, metric, rt, values)
+            values[metric.name] = self._metric_value(metric, rt, values)
         return values
+
+    def _metric_value(self, metric, rt: SimRuntime, values: dict | None = None):
+        """One metric's value; `values`: the metrics computed before it (a metric may use an earlier one's)."""
+        if isinstance(metric, Distance):
+            return round(self._distance(rt, metric.robots[0], metric.robots[1], None), 3)
+        if isinstance(metric, TimeTo):
+            state = self._by_name[metric.step]
+            seen = state.results.get(metric.result)
+            return None if seen is None or state.started_s is None else round(seen - state.started_s, 3)
+        if isinstance(metric, PathLength):
+            samples = rt.trajectories[metric.robot]
+            return round(sum(a.pose.distance_to(b.pose) for a, b in zip(samples, samples[1:])), 3)
+        if isinstance(metric, Measure):  # experiments/measures.py
+            return value_of(metric, self, rt)
+        return compute(self, metric, rt, {} if values is None else values)  # experiments/mission_measures.py
 
     def evaluate(self, rt: SimRuntime) -> Verdict:
         metrics = self._metric_values(rt)
@@ -353,13 +393,22 @@ class MissionScenario(Scenario):
                 d = self._distance(rt, c.robot, c.other, c.point)
                 of = c.other if c.other is not None else f"({c.point[0]:g}, {c.point[1]:g})"
                 criteria.append((f"{c.robot} ends within {c.distance:g} m of {of} ({d:.2f} m)", d <= c.distance))
+            elif isinstance(c, MetricBound) and c.equals:
+                value = _metric_named(metrics, c.metric)
+                criteria.append((f"{c.metric} is {c.equals[0]!r} ({value!r})", value == c.equals[0]
+                                 and isinstance(value, bool) == isinstance(c.equals[0], bool)))
             elif isinstance(c, MetricBound):
-                value = metrics.get(c.metric)
-                ok = value is not None and (c.minimum is None or value >= c.minimum) and \
-                    (c.maximum is None or value <= c.maximum)
-                bounds = " and ".join(x for x in (f">= {c.minimum:g}" if c.minimum is not None else "",
-                                                  f"<= {c.maximum:g}" if c.maximum is not None else "") if x)
+                value = _metric_named(metrics, c.metric)
+                scale = 1.0 if c.relative_to is None else metrics.get(c.relative_to)
+                ok = value is not None and scale is not None and \
+                    (c.minimum is None or value >= c.minimum * scale) and \
+                    (c.maximum is None or value <= c.maximum * scale)
+                of = "" if c.relative_to is None else f" x {c.relative_to} ({scale})"
+                bounds = " and ".join(x for x in (f">= {c.minimum:g}{of}" if c.minimum is not None else "",
+                                                  f"<= {c.maximum:g}{of}" if c.maximum is not None else "") if x)
                 criteria.append((f"{c.metric} {bounds} ({value})", ok))
+            else:
+                criteria.append(self._criterion_more(c, rt))
         for state in self.states:
             name = state.step.name
             metrics[f"{name}_started_s"] = state.started_s
@@ -376,6 +425,132 @@ class MissionScenario(Scenario):
         seqs = set(state.request.seqs)
         peer = robot_address(action.receiver)
         return sum(1 for item in rt.brain(action.sender).received_data if item[1] == peer and item[3] in seqs)
+
+
+    # --- additions for the built-in scenarios as missions (issue 18) ---
+
+    def _fires_more(self, trigger, rt: SimRuntime) -> bool:
+        if isinstance(trigger, OnKnows):
+            return robot_address(trigger.peer) in rt.brain(trigger.robot).peer_capabilities
+        if isinstance(trigger, OnMoving):
+            return rt.trajectories[trigger.robot][-1].speed >= trigger.speed  # as of the last step's record
+        if isinstance(trigger, OnLanded):
+            body = rt.world.bodies[trigger.robot]
+            return hasattr(body, "flight_phase") and body.flight_phase() is FlightPhase.LANDED
+        if isinstance(trigger, OnTeamUp):
+            config = rt.config.brain
+            last = max(power_on_s(robot_address(name), config.power_on_spread_s) for name in self.robots)
+            return rt.time >= (last + config.heartbeat_period_s if last > 0.0 else 0.0)
+        if isinstance(trigger, OnAnswered):
+            return bool(self._by_name[trigger.step].results)
+        if isinstance(trigger, OnGivenUp):
+            request = self._by_name[trigger.step].request
+            return request is not None and request.given_up
+        raise TypeError(trigger)
+
+    def _start_drive(self, state: StepState, rt: SimRuntime) -> None:
+        """A drive by an offset or along a route (a drive `to` a pose starts in _start)."""
+        action, now = state.step.action, rt.time
+        brain = rt.brain(action.robot)
+        if action.by is not None:
+            here = rt.world.bodies[action.robot].pose()
+            goal = Pose2D(here.x + action.by[0], here.y + action.by[1], here.yaw)
+        else:
+            state.route_left = [Pose2D(*p) for p in action.route]
+            goal = state.route_left.pop(0)
+        state.goal = goal
+        brain.navigate_to(goal, now)
+        state.drive = brain.running
+
+    def _drive_ended(self, state: StepState, rt: SimRuntime) -> None:
+        """A drive's leg ended: its result is the brain's navigate result; a route goes on after DONE."""
+        brain, now = rt.brain(state.step.action.robot), rt.time
+        result = last_result(brain, "navigate")
+        if result == ResultCode.DONE and state.route_left:
+            state.goal = state.route_left.pop(0)
+            brain.navigate_to(state.goal, now)
+            state.drive = brain.running
+            return
+        if result is not None:
+            state.results.setdefault(result, now)
+        state.finished_s = now
+
+    def aim_of(self, state: StepState) -> list[float] | None:
+        """[X, Y] a step heads for: its drive's (last) goal, or its command's pose or spot."""
+        action = state.step.action
+        if isinstance(action, Drive):
+            if action.pose is not None:
+                return [action.pose[0], action.pose[1]]
+            if action.route:
+                return [action.route[-1][0], action.route[-1][1]]
+            return None if state.goal is None else [state.goal.x, state.goal.y]
+        if isinstance(action, SendCommand):
+            command = action.command.inner or action.command
+            point = command.pose or command.spot
+            return None if point is None else [point[0], point[1]]
+        return None
+
+    def data_items(self, state: StepState, rt: SimRuntime) -> list:
+        """The data records (time, src, kind, ref_seq, bytes, hops) answering a command step, in order."""
+        action = state.step.action
+        if state.request is None or not isinstance(action, SendCommand):
+            return []
+        seqs = set(state.request.seqs)
+        peer = robot_address(action.receiver)
+        return [item for item in rt.brain(action.sender).received_data if item[1] == peer and item[3] in seqs]
+
+    def data_source(self, state: StepState) -> str:
+        """The robot that sends a command step's data (a forwarded command's target)."""
+        action = state.step.action
+        return action.command.target or action.receiver
+
+    @staticmethod
+    def _note_answer(state: StepState, sent, now: float) -> None:
+        state.results.setdefault(sent.result, now)
+        state.answers.setdefault((sent.result, sent.reason), now)
+
+    def _criterion_more(self, c, rt: SimRuntime) -> tuple[str, bool]:
+        if isinstance(c, StepAnswer):
+            seen = self._by_name[c.step].answers.get((c.result, c.reason))
+            when = "" if seen is None else f" at {seen:.1f} s"
+            return (f"step {c.step}: {c.result.name} ({c.reason.name}){when}", seen is not None)
+        if isinstance(c, StepFinished):
+            when = self._by_name[c.step].finished_s
+            return (f"step {c.step} finished" + ("" if when is None else f" at {when:.1f} s"), when is not None)
+        if isinstance(c, StepDecoded):
+            items = self.data_items(self._by_name[c.step], rt)
+            good = sum(1 for item in items if _decodes(item))
+            return (f"step {c.step}: at least {c.at_least} data items decode ({good} of {len(items)})",
+                    good >= c.at_least and good == len(items))
+        if isinstance(c, LandsOn):
+            body = rt.world.bodies[c.robot]
+            on = body.landed_on() if hasattr(body, "landed_on") else None
+            off = hasattr(body, "flight_phase") and body.flight_phase() is FlightPhase.LANDED
+            return (f"{c.robot} ends on {c.carrier}'s top plate, rotors off ({on}, rotors "
+                    f"{'off' if off else 'on'})", on == c.carrier and off)
+        raise TypeError(c)
+
+
+def _metric_named(metrics: dict, name: str):
+    """A metric's value by name; GROUP.PART names a part of a group metric."""
+    if name in metrics or "." not in name:
+        return metrics.get(name)
+    group, part = name.split(".", 1)
+    return (metrics.get(group) or {}).get(part)
+
+
+def _decodes(item) -> bool:
+    """A data record's bytes decode: a laser scan, or a camera image that shows something."""
+    from rescuemesh.protocol import DataKind
+    from rescuemesh.robot.sensor_codec import SensorDecodeError, decode_image, decode_scan, image_is_informative
+
+    try:
+        if item[2] == DataKind.LASER_SCAN:
+            decode_scan(item[4])
+            return True
+        return image_is_informative(decode_image(item[4]))
+    except SensorDecodeError:
+        return False
 
 
 def _latest_answered(request: CommandRequest):
@@ -402,8 +577,8 @@ def _message(command: CommandSpec, brain):
         return Goto(Pose(x, y, 0.0, yaw))
     if kind is CommandType.RETURN:
         return Return()
-    if kind is CommandType.LAND_ON_TOP:
-        return LandOnTop(here)
+    if kind is CommandType.LAND_ON_TOP:  # the sender's top plate: the height to land at
+        return LandOnTop(Pose(here.x, here.y, brain.body.top_height or 0.0, here.yaw))
     if kind in (CommandType.SHOW_SCAN, CommandType.SHOW_CAM):
         cls = ShowScan if kind is CommandType.SHOW_SCAN else ShowCam
         period = command.period if command.count != 1 else 0.0

@@ -11,11 +11,13 @@ import enum
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import yaml
+
 from rescuemesh.experiments.mission_measures import KEYS as TIMED_METRIC_KEYS
 from rescuemesh.experiments.mission_measures import MODIFIERS as TIMED_METRIC_MODIFIERS
 from rescuemesh.experiments.mission_measures import TimedMetric, read_timed_metric
 from rescuemesh.experiments.yamlread import Reader, read_yaml
-from rescuemesh.protocol import ResultCode
+from rescuemesh.protocol import Reason, ResultCode
 from rescuemesh.robot.policy import Rank
 
 MAX_FILE_BYTES = 256 * 1024
@@ -70,7 +72,9 @@ class SendCommand:
 @dataclass(frozen=True)
 class Drive:
     robot: str
-    pose: tuple[float, float, float]
+    pose: tuple[float, float, float] | None  # None: `route` or `by`
+    route: tuple[tuple[float, float, float], ...] = ()  # each point once the previous one ended DONE
+    by: tuple[float, float] | None = None  # an offset in the map frame from where the robot is at the start
 
 
 @dataclass(frozen=True)
@@ -89,7 +93,16 @@ class EndMission:
     """The mission ends in the control step this step starts."""
 
 
-Action = SendCommand | Drive | Outage | Wait | EndMission
+
+
+@dataclass(frozen=True)
+class Settle:
+    """Finishes once every one of `robots` has been still (base.settled) since the step started."""
+
+    robots: tuple[str, ...]
+
+
+Action = SendCommand | Drive | Outage | Wait | EndMission | Settle
 
 
 # --- triggers ---
@@ -104,7 +117,6 @@ class OnStep:
     step: str
     result: ResultCode | frozenset[ResultCode] | None  # None: when the step has finished; a set: any of them
     started: bool = False  # when the step has started (result None)
-    given_up: bool = False  # when the mission gave the step's command up, unanswered (result None)
     at_receiver: bool = False  # `result` as the receiver ended the command, not as its sender heard
 
     @property
@@ -145,7 +157,42 @@ class OnSettled:
     robot: str  # still (scenarios.base.settled) for SETTLE_S, counted from when the trigger is armed
 
 
-Trigger = At | OnStep | OnRegion | OnNear | OnLink | OnSpeed | OnSettled
+
+@dataclass(frozen=True)
+class OnKnows:
+    robot: str
+    peer: str  # `robot` has had `peer`'s Heartbeat (its capabilities and epoch)
+
+
+@dataclass(frozen=True)
+class OnMoving:
+    robot: str
+    speed: float  # m/s, at least
+
+
+@dataclass(frozen=True)
+class OnLanded:
+    robot: str  # a quadrotor that has landed, rotors off
+
+
+@dataclass(frozen=True)
+class OnTeamUp:
+    """Every robot is switched on (settings.power_on_spread) and has had a heartbeat period to hear
+    the others."""
+
+
+@dataclass(frozen=True)
+class OnAnswered:
+    step: str  # the step's command has had its first answer (any result) at its sender
+
+
+@dataclass(frozen=True)
+class OnGivenUp:
+    step: str  # the step's command was given up (every copy failed)
+
+
+Trigger = (At | OnStep | OnRegion | OnNear | OnLink | OnSpeed | OnSettled | OnKnows | OnMoving | OnLanded | OnTeamUp
+           | OnGivenUp | OnAnswered)
 
 
 @dataclass(frozen=True)
@@ -156,6 +203,10 @@ class Step:
     action: Action
     armed_by: str | None = None  # the trigger is checked only once this step has finished
     not_before_s: float = 0.0  # ... and only from this simulated time on
+    attempts: int = 3  # a command: how many copies the mission sends if the protocol gives one up
+    at_latest: float | None = None  # the step starts at this time at the latest, its trigger held or not
+    data_wait_s: float | None = None  # a ShowScan/ShowCam: s to wait after its final result for data (None: 5)
+    finish_on_answer: bool = False  # a command step finishes at its first answer, not at its final result
 
 
 # --- criteria and metrics ---
@@ -198,9 +249,36 @@ class MetricBound:
     metric: str
     minimum: float | None
     maximum: float | None
+    relative_to: str | None = None  # the bounds are shares of this metric's value
+    equals: tuple = ()  # (VALUE,): the metric must equal VALUE (a name, true/false, a number)
 
 
-Criterion = StepResult | StepData | EndsIn | EndsNear | NoCollision | MetricBound
+@dataclass(frozen=True)
+class StepAnswer:
+    step: str
+    result: ResultCode
+    reason: Reason  # S's command had this result with this reason at its sender
+
+
+@dataclass(frozen=True)
+class StepFinished:
+    step: str
+
+
+@dataclass(frozen=True)
+class StepDecoded:
+    step: str
+    at_least: int  # data items that decode (scans; images that show something)
+
+
+@dataclass(frozen=True)
+class LandsOn:
+    robot: str
+    carrier: str  # `robot` ends resting on `carrier`'s top plate, rotors off
+
+
+Criterion = (StepResult | StepData | EndsIn | EndsNear | NoCollision | MetricBound | StepFinished | StepDecoded | LandsOn
+             | StepAnswer)
 
 
 @dataclass(frozen=True)
@@ -222,7 +300,9 @@ class PathLength:
     robot: str
 
 
-Metric = Distance | TimeTo | PathLength | TimedMetric
+from rescuemesh.experiments.measures import Measure  # noqa: E402  (the larger metric vocabulary)
+
+Metric = Distance | TimeTo | PathLength | TimedMetric | Measure
 
 
 @dataclass(frozen=True)
@@ -240,6 +320,8 @@ class Settings:
     relay: bool = True
     radio: str = "ble"
     secure: bool = True
+    follow_distance_m: float | None = None  # None: the brain's default (1 m, the paper's)
+    power_on_spread_s: float | None = None  # None: the brain's default
 
 
 @dataclass(frozen=True)
@@ -254,7 +336,8 @@ class Mission:
     steps: tuple[Step, ...]
     criteria: tuple[Criterion, ...]
     metrics: tuple[Metric, ...] = field(default_factory=tuple)
-    end_after_s: float = 2.0  # the mission plays on this long after every step has finished
+    end_after_s: float = 2.0  # the mission ends this long after its last step finished
+    stop_when: tuple[Trigger, ...] = ()  # any of these ends the mission at once
 
     @staticmethod
     def load(path: str | Path) -> "Mission":
@@ -267,7 +350,8 @@ class Mission:
 _TOP = {"mission": "its name", "summary": "one line on what it shows", "map": "office, or a map file",
         "time_limit": "simulated seconds", "settings": "loss, relay, radio, secure", "team": "the robots",
         "steps": "the script", "criteria": "what success means", "metrics": "figures to report",
-        "end_after": "s the mission plays on once every step has finished (default 2)"}
+        "end_after": "s the mission plays on once every step has finished (default 2)",
+        "stop_when": "events that end the mission"}
 _RESULTS = {r.name.lower(): r for r in ResultCode}
 
 
@@ -290,7 +374,8 @@ def load_mission(path: Path) -> Mission:
     steps = _steps(r, top["steps"], names)
     step_names = {s.name for s in steps}
     for step in steps:
-        for other in (step.trigger.step if isinstance(step.trigger, OnStep) else None, step.armed_by):
+        for other in (step.trigger.step if isinstance(step.trigger, (OnStep, OnGivenUp, OnAnswered)) else None,
+                      step.armed_by):
             if other is not None and other not in step_names:
                 raise r.fail(top["steps"], f"step {step.name!r} waits for step {other!r}, which does not exist")
     metrics: list[Metric] = []
@@ -300,21 +385,32 @@ def load_mission(path: Path) -> Mission:
             raise r.fail(item, f"metrics: the name {metric.name!r} is used twice")
         metrics.append(metric)
     metric_names = [m.name for m in metrics]
-    criteria = tuple(_criterion(r, item, names, step_names, set(metric_names))
+    criteria = tuple(_criterion(r, item, names, step_names, set(metric_names) | _group_parts(metrics))
                      for item in r.sequence(top["criteria"], "criteria"))
     end_after = r.number(top["end_after"], "end_after", minimum=0.0) if "end_after" in top else 2.0
-    return Mission(name, path, summary, map_path, limit, settings, team, steps, criteria, tuple(metrics), end_after)
+    stop_when = tuple(_trigger(r, item, "stop_when", names) for item in r.sequence(top["stop_when"], "stop_when")) \
+        if "stop_when" in top else ()
+    for trigger in stop_when:
+        if isinstance(trigger, (OnStep, OnGivenUp, OnAnswered)) and trigger.step not in step_names:
+            raise r.fail(top["stop_when"], f"stop_when waits for step {trigger.step!r}, which does not exist")
+    return Mission(name, path, summary, map_path, limit, settings, team, steps, criteria, tuple(metrics), end_after,
+                   stop_when)
 
 
 def _settings(r: Reader, node) -> Settings:
     f = r.keys(node, "settings", {"loss": "in [0, 1)", "relay": "true or false", "radio": "ble or disc",
-                                  "secure": "true or false"})
+                                  "secure": "true or false", "follow_distance": "m a follower keeps",
+                                  "power_on_spread": "s over which the team is switched on"})
     loss = r.number(f["loss"], "settings.loss", minimum=0.0) if "loss" in f else 0.0
     if loss >= 1.0:
         raise r.fail(f["loss"], f"settings.loss must be below 1, got {loss!r}")
     return Settings(loss, r.flag(f["relay"], "settings.relay") if "relay" in f else True,
                     r.text(f["radio"], "settings.radio", ("ble", "disc")) if "radio" in f else "ble",
-                    r.flag(f["secure"], "settings.secure") if "secure" in f else True)
+                    r.flag(f["secure"], "settings.secure") if "secure" in f else True,
+                    r.number(f["follow_distance"], "settings.follow_distance", above=0.0)
+                    if "follow_distance" in f else None,
+                    r.number(f["power_on_spread"], "settings.power_on_spread", minimum=0.0)
+                    if "power_on_spread" in f else None)
 
 
 def _team(r: Reader, node) -> dict[str, RobotSpec]:
@@ -400,8 +496,12 @@ _STEP_KEYS = {"name": "a name other steps and criteria use", "at": "simulated ti
               "after_step": "a step that must have finished before the trigger is checked",
               "command": "{from, to, type, ...}", "drive": "{robot, to: [X, Y, YAW]}",
               "outage": "{robot, seconds}", "wait": "s", "end": "true: the mission ends",
-              "not_before": "simulated s before which the trigger is not checked"}
-_ACTIONS = ("command", "drive", "outage", "wait", "end")
+              "not_before": "simulated s before which the trigger is not checked",
+              "settle": "[ROBOT, ...]: until they are still",
+              "attempts": "a command: copies sent at most (default 3)",
+              "finish": "a command: `answered` (finished at its first answer)",
+              "at_latest": "s: the step starts then at the latest", "data_wait": "s to wait for data (default 5)"}
+_ACTIONS = ("command", "drive", "outage", "wait", "end", "settle")
 
 
 def _steps(r: Reader, node, names: set[str]) -> tuple[Step, ...]:
@@ -421,8 +521,9 @@ def _steps(r: Reader, node, names: set[str]) -> tuple[Step, ...]:
         after = r.number(f["after"], f"{what}.after", minimum=0.0) if "after" in f else 0.0
         armed_by = r.text(f["after_step"], f"{what}.after_step") if "after_step" in f else None
         not_before = r.number(f["not_before"], f"{what}.not_before", minimum=0.0) if "not_before" in f else 0.0
-        steps.append(Step(name, trigger, after, _action(r, actions[0], f[actions[0]], what, names), armed_by,
-                          not_before))
+        action = _action(r, actions[0], f[actions[0]], what, names)
+        extra = _step_extras(r, f, what, action)
+        steps.append(Step(name, trigger, after, action, armed_by, not_before, **extra))
     return tuple(steps)
 
 
@@ -443,8 +544,9 @@ def _action(r: Reader, kind: str, node, what: str, names: set[str]) -> Action:
         command = _command_from_fields(r, node, f, f"{what}.command", names)
         return SendCommand(sender, receiver, command)
     if kind == "drive":
-        f = r.keys(node, f"{what}.drive", {"robot": "who drives", "to": "[X, Y, YAW]"}, required=("robot", "to"))
-        return Drive(_robot(r, f["robot"], f"{what}.drive.robot", names), r.point(f["to"], f"{what}.drive.to", yaw=True))
+        return _drive(r, node, what, names)
+    if kind == "settle":
+        return Settle(tuple(_robot(r, item, f"{what}.settle", names) for item in r.sequence(node, f"{what}.settle")))
     f = r.keys(node, f"{what}.outage", {"robot": "whose radio", "seconds": "how long"}, required=("robot", "seconds"))
     return Outage(_robot(r, f["robot"], f"{what}.outage.robot", names),
                   r.number(f["seconds"], f"{what}.outage.seconds", above=0.0))
@@ -460,9 +562,12 @@ def _command_from_fields(r: Reader, node, fields: dict, what: str, names: set[st
 _TRIGGER_KEYS = {"step": "a step's name", "result": "a result (accepted, in_progress, done, failed, ...)",
                  "robot": "a robot", "enters": "a region of the map", "within": "m", "of": "a robot or [X, Y]",
                  "loses": "a robot it stops hearing", "hears": "a robot it hears (again)",
-                 "started": "true: when the step starts", "given_up": "true: when its command is given up",
+                 "started": "true: when the step starts", "given_up": "true, with step: its command was given up",
                  "at_receiver": "true: `result` as the receiver ended the command",
-                 "speed_at_least": "m/s: the robot moves at least this fast", "settled": "true: the robot is still"}
+                 "speed_at_least": "m/s: the robot moves at least this fast", "settled": "true: the robot is still",
+                 "knows": "a robot whose Heartbeat it has had", "moving": "m/s, at least",
+                 "landed": "true: a quadrotor has landed, rotors off", "team_up": "true: the whole team is on",
+                 "answered": "true, with step: its command had an answer"}
 
 
 def _near(r: Reader, f: dict, what: str, names: set[str]):
@@ -474,6 +579,9 @@ def _near(r: Reader, f: dict, what: str, names: set[str]):
 
 def _trigger(r: Reader, node, what: str, names: set[str]) -> Trigger:
     f = r.keys(node, f"{what}.on", _TRIGGER_KEYS)
+    more = _more_trigger(r, node, f, what, names)
+    if more is not None:
+        return more
     if "step" in f:
         return _step_event(r, node, f, what)
     if "robot" not in f:
@@ -503,16 +611,15 @@ def _trigger(r: Reader, node, what: str, names: set[str]) -> Trigger:
 
 def _step_event(r: Reader, node, f: dict, what: str) -> OnStep:
     """`{step: S}`, `{step: S, result: X or [X, ...] [, at_receiver: true]}`, `{step: S, started: true}`,
-    `{step: S, given_up: true}`."""
+    (`{step: S, given_up: true}` is read by mission_spec_more)."""
     step = r.text(f["step"], f"{what}.on.step")
     extra = set(f) - {"step"}
-    if extra - {"result", "at_receiver", "started", "given_up"}:
+    if extra - {"result", "at_receiver", "started"}:
         raise r.fail(node, f"{what}.on: a step event takes `result` (and `at_receiver`), `started` or `given_up`")
-    for flag in ("started", "given_up"):
-        if flag in f:
-            if extra != {flag} or not r.flag(f[flag], f"{what}.on.{flag}"):
-                raise r.fail(node, f"{what}.on: `{flag}: true` stands alone beside `step`")
-            return OnStep(step, None, started=flag == "started", given_up=flag == "given_up")
+    if "started" in f:  # (`given_up` is read by mission_spec_more._more_trigger, before this)
+        if extra != {"started"} or not r.flag(f["started"], f"{what}.on.started"):
+            raise r.fail(node, f"{what}.on: `started: true` stands alone beside `step`")
+        return OnStep(step, None, started=True)
     if "at_receiver" in f and "result" not in f:
         raise r.fail(f["at_receiver"], f"{what}.on: at_receiver goes with `result`")
     if "result" not in f:
@@ -526,7 +633,10 @@ _CRITERION_KEYS = {"step": "a command step", "result": "its result", "within": "
                    "data": "how many data items it must bring back", "robot": "a robot",
                    "ends_in": "a region", "of": "a robot or [X, Y]", "no_collision": "true",
                    "metric": "a metric's name", "min": "lowest allowed", "max": "highest allowed",
-                   "at_receiver": "true: the result the receiver ended the command with"}
+                   "at_receiver": "true: the result the receiver ended the command with",
+                   "finished": "true: the step finished", "decoded": "how many data items must decode",
+                   "lands_on": "a robot whose top plate it ends on", "relative_to": "a metric the bounds are shares of",
+                   "equals": "the value a metric must have", "reason": "with result: the reason it came with"}
 
 
 def _criterion(r: Reader, node, names: set[str], steps: set[str], metrics: set[str]) -> Criterion:
@@ -539,18 +649,40 @@ def _criterion(r: Reader, node, names: set[str], steps: set[str], metrics: set[s
         metric = r.text(f["metric"], "metric")
         if metric not in metrics:
             raise r.fail(f["metric"], f"unknown metric {metric!r}; the mission's metrics: {', '.join(sorted(metrics))}")
-        if set(f) - {"metric", "min", "max"} or not ({"min", "max"} & set(f)):
-            raise r.fail(node, "a metric criterion takes `min`, `max` or both")
+        if "equals" in f:
+            if set(f) != {"metric", "equals"}:
+                raise r.fail(node, "a metric criterion takes `equals` alone, or `min`, `max` or both")
+            return MetricBound(metric, None, None, None, (r.scalar(f["equals"]),))
+        if set(f) - {"metric", "min", "max", "relative_to"} or not ({"min", "max"} & set(f)):
+            raise r.fail(node, "a metric criterion takes `min`, `max` or both (and optionally `relative_to`), "
+                               "or `equals`")
+        relative = r.text(f["relative_to"], "relative_to") if "relative_to" in f else None
+        if relative is not None and relative not in metrics:
+            raise r.fail(f["relative_to"], f"unknown metric {relative!r}; the mission's metrics: "
+                                           f"{', '.join(sorted(metrics))}")
         return MetricBound(metric, r.number(f["min"], "min") if "min" in f else None,
-                           r.number(f["max"], "max") if "max" in f else None)
+                           r.number(f["max"], "max") if "max" in f else None, relative)
     if "step" in f:
         step = r.text(f["step"], "step")
         if step not in steps:
             raise r.fail(f["step"], f"unknown step {step!r}")
         if "data" in f:
             return StepData(step, r.whole(f["data"], "data", minimum=1))
+        if "decoded" in f:
+            return StepDecoded(step, r.whole(f["decoded"], "decoded", minimum=1))
+        if "finished" in f:
+            if set(f) != {"step", "finished"} or not r.flag(f["finished"], "finished"):
+                raise r.fail(node, "a finished criterion is `{step: S, finished: true}`")
+            return StepFinished(step)
         if "result" not in f:
             raise r.fail(node, "a step criterion takes `result` (and optionally `within` s) or `data`")
+        if "reason" in f:
+            if set(f) != {"step", "result", "reason"}:
+                raise r.fail(node, "a reason criterion is `{step: S, result: X, reason: Y}`")
+            text = r.text(f["reason"], "reason").upper()
+            if text not in Reason.__members__:
+                raise r.fail(f["reason"], f"reason must be one of {', '.join(m.lower() for m in Reason.__members__)}")
+            return StepAnswer(step, _result(r, f["result"], "result"), Reason[text])
         return StepResult(step, _result(r, f["result"], "result"),
                           r.number(f["within"], "within", above=0.0) if "within" in f else None,
                           r.flag(f["at_receiver"], "at_receiver") if "at_receiver" in f else False)
@@ -558,6 +690,8 @@ def _criterion(r: Reader, node, names: set[str], steps: set[str], metrics: set[s
         robot = _robot(r, f["robot"], "robot", names)
         if "ends_in" in f:
             return EndsIn(robot, r.text(f["ends_in"], "ends_in"))
+        if "lands_on" in f:
+            return LandsOn(robot, _robot(r, f["lands_on"], "lands_on", names))
         if "within" in f and "of" in f:
             other, point = _near(r, f, "criterion", names)
             return EndsNear(robot, r.number(f["within"], "within", above=0.0), other, point)
@@ -565,11 +699,16 @@ def _criterion(r: Reader, node, names: set[str], steps: set[str], metrics: set[s
     raise r.fail(node, "a criterion names a step, a robot, a metric or no_collision")
 
 
-def _metric(r: Reader, node, names: set[str], steps: set[str], metrics: set[str]) -> Metric:
+def _metric(r: Reader, node, names: set[str], steps: set[str], metrics: frozenset[str] | set[str] = frozenset()) -> Metric:
+    from rescuemesh.experiments.measures import MEASURES, read_measure
+
     f = r.keys(node, "a metric", {"name": "its name in result.json", "distance": "[ROBOT, ROBOT] at the end",
                                   "time_to": "{step, result}: s from the step's start",
-                                  "path_length": "a robot: m driven", **TIMED_METRIC_KEYS}, required=("name",))
+                                  "path_length": "a robot: m driven", **MEASURES, **TIMED_METRIC_KEYS},
+               required=("name",))
     name = r.text(f["name"], "metric name")
+    if _measured_over_events(f):  # the measures of experiments/measures.py
+        return read_measure(r, node, f, name, names, steps)
     timed = read_timed_metric(r, node, f, name, names, steps, metrics)
     if timed is not None:
         if {"distance", "time_to", "path_length"} & set(f):
@@ -591,5 +730,29 @@ def _metric(r: Reader, node, names: set[str], steps: set[str], metrics: set[str]
         return TimeTo(name, step, _result(r, g["result"], "time_to.result"))
     if "path_length" in f:
         return PathLength(name, _robot(r, f["path_length"], "path_length", names))
-    raise r.fail(node, "a metric is one of distance, time_to, path_length, "
-                       + ", ".join(k for k in TIMED_METRIC_KEYS if k not in TIMED_METRIC_MODIFIERS))
+    measures = sorted(set(k for k in TIMED_METRIC_KEYS if k not in TIMED_METRIC_MODIFIERS) | set(MEASURES))
+    raise r.fail(node, f"a metric is one of distance, time_to, path_length, {', '.join(measures)}")
+
+
+#: Moments that experiments/mission_measures.py reads from a step's record; any other `time_of` event (a
+#: robot's, an answer, a give-up) is watched every control step by experiments/measures.py.
+_STEP_MOMENT_KEYS = frozenset({"step", "result", "started", "at_receiver"})
+
+
+def _measured_over_events(f: dict) -> bool:
+    """Whether metric fields `f` are one of experiments/measures.py's: its own keys, a `time_of` of an event
+    other than a step's moment, or a `following_error` over a chain (`{robots: [...], from, to}`)."""
+    from rescuemesh.experiments.measures import MEASURES
+
+    if "time_of" in f:
+        when = f["time_of"]
+        return not (isinstance(when, yaml.MappingNode) and
+                    {key.value for key, _ in when.value} <= _STEP_MOMENT_KEYS)
+    if "following_error" in f:
+        return isinstance(f["following_error"], yaml.MappingNode)
+    return bool(set(f) & (set(MEASURES) - set(TIMED_METRIC_KEYS)))
+
+
+# the keys added for the built-in scenarios (issue 18) are read in mission_spec_more.py
+from rescuemesh.experiments.mission_spec_more import (  # noqa: E402  (it reads into the types above)
+    _drive, _group_parts, _more_trigger, _step_extras)
