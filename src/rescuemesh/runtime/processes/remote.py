@@ -184,8 +184,18 @@ class RemoteStack:
     def hops_histogram(self) -> Counter:
         return Counter(self.report().hops_histogram)
 
-    def receive(self, data: bytes, now: float, *, rssi_dbm: float | None = None, relay_delay_s: float = 0.0) -> None:
-        self.prime(*self._link.call_stack(self._robot, msg.Receive(data, now, rssi_dbm, relay_delay_s)))
+    @property
+    def robot(self) -> str:
+        return self._robot
+
+    def receive(self, data: bytes, now: float, *, rssi_dbm: float | None = None,
+                relay_delay_s: float = 0.0) -> bool | None:
+        request = msg.Receive(data, now, rssi_dbm, relay_delay_s)
+        if self._link.batching:  # one arrival to all its receivers at once: the medium collects us after
+            self._link.deliver_later(self, request)
+            return False
+        self.prime(*self._link.call_stack(self._robot, request))
+        return None
 
     def handle_timer(self, now: float) -> None:
         self.prime(*self._link.call_stack(self._robot, msg.Timer(now)))
