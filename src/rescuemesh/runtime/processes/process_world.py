@@ -6,8 +6,9 @@ clock, its control key) and ProcessRuntime: SimRuntime's loop with robots that a
 (runtime/processes/remote.py), robots that join (proving the control key), die and join again.
 Must not know: scenarios' scripts and criteria, plots, what a brain does inside.
 
-A tick at time t: the world steps to t, the medium delivers what is due (each frame heard is one call
-to its robot, and so is each stack timer), every live robot steps its
+A tick at time t: the world steps to t, the medium delivers what is due (a frame that ends on the air
+goes to all the robots that hear it in one parallel round, runtime/processes/lockstep_medium.py; each
+stack timer is one call), every live robot steps its
 brain and answers what it sends, how its wheels turn and what changed in its status (one call each,
 all at once), the mission script runs (its reads come from that status, its commands go to the
 robots), a robot the script commanded is asked again what it sends, and the medium takes the frames.

@@ -13,7 +13,9 @@ The medium calls a stack in a fixed pattern: `receive` or `handle_timer`, then `
 timer at once, and the world primes the stand-in with the same pair at every flush (after the
 brains ran and the mission script called into them). Between those calls nothing else touches a
 robot's stack, so the stand-in's cached answers are what the stack itself would say, one round trip
-per event instead of three.
+per event instead of three. While the medium delivers one frame to all its receivers
+(runtime/processes/lockstep_medium.py), receive() only queues its request with the others and answers
+False (do not collect me yet); the medium collects it once every receiver has answered.
 """
 
 from __future__ import annotations
