@@ -262,7 +262,10 @@ class ProcessRuntime(SimRuntime):
         answers = self._call_live(requests) if requests else {}
         for stack, _ in batch:
             answer = answers.get(stack.robot)
-            stack.prime(answer.transmissions if answer else [], answer.timer if answer else None)
+            if answer is None:  # its process is gone (or went during this round)
+                stack.prime([], None)
+            else:
+                stack.prime(answer.transmissions, answer.timer)
         return [stack for stack, _ in batch]
 
     def _call_live(self, requests: dict) -> dict:
@@ -320,6 +323,13 @@ class ProcessRuntime(SimRuntime):
         for name in sorted(set(self.brains) - self.live):
             rows.append({"name": name, "pid": None, "cpu_s": None, "joins": self.joins[name]})
         return rows
+
+    def control_plane(self) -> dict:
+        """The requests the world sent its robots, by type, and the rounds it waited for (one request,
+        or one parallel round to several robots), over the whole run."""
+        client = self.host.client
+        return {"requests": dict(sorted(client.requests.items())), "rounds": dict(sorted(client.rounds.items())),
+                "ticks": self.ticks}
 
     def close(self) -> None:
         """Tell every live robot to halt and leave."""
