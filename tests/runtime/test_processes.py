@@ -52,6 +52,10 @@ def test_a_run_in_processes_is_the_same_run_as_in_one_process(tmp_path, scenario
     names = [p["name"] for p in runtime["processes"]]
     assert names == ["world", "robot_1", "robot_2", "robot_3"]
     assert len({p["pid"] for p in runtime["processes"]}) == 4 and all(p["cpu_s"] > 0 for p in runtime["processes"])
+    plane = runtime["control_plane"]  # one parallel round of Ticks per tick
+    assert plane["rounds"]["Tick"] == plane["ticks"] and plane["requests"]["Tick"] == 3 * plane["ticks"]
+    # a frame goes to all the robots that hear it in one round (this used to be one round per robot)
+    assert plane["rounds"]["Receive"] < 0.8 * plane["requests"]["Receive"]
     for name in names[1:]:
         log = (tmp_path / "many" / "processes" / f"{name}.log").read_text()
         assert "joined the world" in log and "the world's run is over: wheels halted, leaving" in log

@@ -36,6 +36,9 @@ CONVOY_RTF_GOAL = 10.0
 PROCESSES_RTF_GOAL = 10.0
 #: ... and a command's round trip to its Confirm between two robot processes over Zenoh under 1 ms.
 ZENOH_RTT_GOAL_MS = 1.0
+#: Issue 21's goal: with --processes, the follow and the convoy of 10 at least this fraction of the
+#: one-process real-time factor (the loop alone: set-up is imports and joins, apart).
+PROCESSES_RATIO_GOAL = 0.5
 #: Team sizes of the scaling series (the convoy scenario on the office).
 TEAM_SIZES = (3, 10, 30)
 CODEC_GOAL_FPS = 100_000
@@ -79,6 +82,7 @@ def run_bench(out: Path, *, seed: int = 0) -> int:
     figures["zenoh_link"] = _link_figures()
     figures["slam_like"] = _slam_like_figures(seed)
     figures["teams"] = _team_figures(seed)
+    figures["processes"]["convoy_10"] = _process_convoy_figures(seed)
     figures["network"] = _network_figures(seed)
     figures["sweep"] = _sweep_figures(seed)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -103,12 +107,44 @@ def _process_figures(seed: int, one_process: dict) -> dict:
                          "loop_real_time_factor": round(r["sim_time_s"] / loop_s, 2) if loop_s > 0 else None,
                          "success": r["success"]}
     figures["same_result"] = _comparable(result) == _comparable(one_process)
+    figures["loop_ratio"] = _ratio(figures)
     figures["goal_real_time_factor"] = PROCESSES_RTF_GOAL
     p, o = figures["processes"], figures["one_process"]
     print(f"processes       : follow with 4 processes over Zenoh {p['real_time_factor']}x real time "
           f"(goal >= {PROCESSES_RTF_GOAL:g}x; {p['setup_s']:.2f} s set-up, loop alone {p['loop_real_time_factor']}x) "
           f"beside {o['real_time_factor']}x in one process (loop alone {o['loop_real_time_factor']}x); "
-          f"same result: {'yes' if figures['same_result'] else 'NO'}")
+          f"same result: {'yes' if figures['same_result'] else 'NO'}; loop ratio {figures['loop_ratio']} "
+          f"(goal >= {PROCESSES_RATIO_GOAL:g})")
+    return figures
+
+
+def _ratio(figures: dict) -> float | None:
+    """The processes' loop real-time factor over the one process's."""
+    p, o = figures["processes"]["loop_real_time_factor"], figures["one_process"]["loop_real_time_factor"]
+    return round(p / o, 2) if p and o else None
+
+
+def _process_convoy_figures(seed: int) -> dict:
+    """The convoy of 10 in one process and with --processes, run one after the other as a user runs them."""
+    figures = {}
+    with tempfile.TemporaryDirectory(prefix="rescuemesh-bench-") as folder:
+        for kind, extra in (("one_process", []), ("processes", ["--processes"])):
+            subprocess.run([sys.executable, "-m", "rescuemesh", "run", "convoy", "--robots", "10", "--quiet",
+                            "--seed", str(seed), "--out", f"{folder}/{kind}", *extra],
+                           capture_output=True, timeout=1200, check=False)
+            r = json.loads((Path(folder) / kind / "result.json").read_text())
+            loop_s = r["wall_time_s"] - r["runtime"]["setup_s"]
+            figures[kind] = {"real_time_factor": r["real_time_factor"], "setup_s": r["runtime"]["setup_s"],
+                             "loop_real_time_factor": round(r["sim_time_s"] / loop_s, 2) if loop_s > 0 else None,
+                             "success": r["success"]}
+            if kind == "one_process":
+                one = r
+        figures["same_result"] = _comparable(r) == _comparable(one)
+    figures["loop_ratio"] = _ratio(figures)
+    p, o = figures["processes"], figures["one_process"]
+    print(f"processes       : convoy of 10 with 11 processes, loop alone {p['loop_real_time_factor']}x beside "
+          f"{o['loop_real_time_factor']}x in one process: ratio {figures['loop_ratio']} (goal >= "
+          f"{PROCESSES_RATIO_GOAL:g}; {p['setup_s']:.2f} s set-up); same result: {'yes' if figures['same_result'] else 'NO'}")
     return figures
 
 

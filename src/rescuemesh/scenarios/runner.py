@@ -105,7 +105,8 @@ def _judge(scenario, rt, wall_s: float, map_model) -> tuple[Verdict, dict]:
     result = build_result(scenario, rt, verdict, wall_s, map_model)
     if hasattr(rt, "processes"):
         result["runtime"] = {"kind": "processes", "processes": rt.processes(),
-                             "process_events": [[t, robot, what] for t, robot, what in rt.process_log]}
+                             "process_events": [[t, robot, what] for t, robot, what in rt.process_log],
+                             "control_plane": rt.control_plane()}
     else:
         result["runtime"] = {"kind": "one process",
                              "processes": [{"name": "world and robots", "pid": os.getpid(),

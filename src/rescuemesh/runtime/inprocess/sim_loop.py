@@ -38,6 +38,9 @@ class TrajectorySample:
 class SimRuntime:
     """A team of simulated robots on one map, stepped in simulated time."""
 
+    #: The radio medium's class (a world with robot processes delivers each frame to all at once).
+    medium_class = SimMedium
+
     def __init__(self, map_model: MapModel, starts: dict[str, Pose2D], config: SimConfig | None = None) -> None:
         self.config = config or SimConfig()
         self.map = map_model
@@ -46,7 +49,7 @@ class SimRuntime:
         radio_seed, world_seed = int(rng.integers(2**63)), int(rng.integers(2**31))
         self.world = World(map_model, starts, physics_dt=config.physics_dt, seed=world_seed, kinds=config.kinds)
         self.channel = make_channel(config.radio.value, grid=map_model.grid, seed=radio_seed, **config.radio_params)
-        self.medium = SimMedium(self.channel, radio_seed, extra_loss=config.loss, record=True)
+        self.medium = self.medium_class(self.channel, radio_seed, extra_loss=config.loss, record=True)
         self.brains: dict[str, RobotBrain] = {}
         self.stacks: dict[str, NetworkStack] = {}
         self._make_team(starts)

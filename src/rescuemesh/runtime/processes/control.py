@@ -27,6 +27,7 @@ import queue
 import struct
 import threading
 import time
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -279,6 +280,9 @@ class CallClient:
         self.nonce = os.urandom(16)  # this run's
         self.refusals = Refusals("world")
         self.calls = 0
+        #: Requests sent, by type, and rounds waited for (a call, or one call_all of several robots).
+        self.requests: Counter[str] = Counter()
+        self.rounds: Counter[str] = Counter()
         self._counter = itertools.count(1)
         self._inbox: dict[str, queue.SimpleQueue] = {}
         self._publishers: dict[str, Any] = {}
@@ -307,11 +311,15 @@ class CallClient:
             self.refusals.refuse(str(error))
 
     def call(self, robot: str, request: Any, *, timeout_s: float | None = None) -> Any:
+        self.rounds[type(request).__name__] += 1
         return self._result(robot, request, self._send(robot, request, timeout_s))
 
     def call_all(self, requests: dict[str, Any], *, tolerate: bool = False) -> dict[str, Any]:
         """The same moment's calls to several robots, sent together, answered in parallel. With
         `tolerate`, a robot that does not answer gets its ControlError as its value instead of raising."""
+        for request in requests.values():
+            self.rounds[type(request).__name__] += 1
+            break
         pending = {robot: (request, self._send(robot, request, None)) for robot, request in requests.items()}
         answers = {}
         for robot, (request, sent) in pending.items():
@@ -325,6 +333,7 @@ class CallClient:
 
     def _send(self, robot: str, request: Any, timeout_s: float | None):
         self.calls += 1
+        self.requests[type(request).__name__] += 1
         counter = next(self._counter)
         payload = self.control_key.seal(_REQUEST, self.nonce, counter, robot, encode(request))
         if robot not in self._inbox:

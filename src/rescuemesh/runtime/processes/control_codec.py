@@ -70,6 +70,7 @@ def _registry() -> tuple[dict[str, type], dict[str, type]]:
 _RECORDS: dict[str, type] = {}
 _ENUMS: dict[str, type] = {}
 _FIELDS: dict[type, tuple[tuple[str, typing.Callable], ...]] = {}  # class -> ((field, its check), ...)
+_NAMES: dict[type, tuple[str, ...]] = {}  # a registered class -> its fields' names, in order
 
 
 def _load() -> None:
@@ -79,6 +80,7 @@ def _load() -> None:
     for name, cls in records.items():
         hints = typing.get_type_hints(cls)
         _FIELDS[cls] = tuple((f.name, _checker(hints[f.name])) for f in dataclasses.fields(cls) if f.init)
+        _NAMES[cls] = tuple(name for name, _ in _FIELDS[cls])
     _ENUMS.update(enums)
     _RECORDS.update(records)
 
@@ -93,6 +95,12 @@ def registered_types() -> tuple[list[str], list[str]]:
 
 
 def _default(value):
+    cls = type(value)
+    names = _NAMES.get(cls)
+    if names is not None:  # a registered record (most of what crosses): its fields in order
+        return msgpack.ExtType(_EXT_RECORD, _pack([cls.__name__, [getattr(value, f) for f in names]]))
+    if cls is tuple:
+        return msgpack.ExtType(_EXT_TUPLE, _pack(list(value)))
     if isinstance(value, enum.Enum):
         name = type(value).__name__
         if _ENUMS.get(name) is not type(value):
@@ -141,6 +149,8 @@ def encode(value) -> bytes:
 
 
 def _ext(code: int, data: bytes):
+    if code == _EXT_RECORD:
+        return _record(_unpack(data))
     if code == _EXT_TUPLE:
         return tuple(_unpack(data))
     if code == _EXT_ENUM:

@@ -6,8 +6,9 @@ clock, its control key) and ProcessRuntime: SimRuntime's loop with robots that a
 (runtime/processes/remote.py), robots that join (proving the control key), die and join again.
 Must not know: scenarios' scripts and criteria, plots, what a brain does inside.
 
-A tick at time t: the world steps to t, the medium delivers what is due (each frame heard is one call
-to its robot, and so is each stack timer), every live robot steps its
+A tick at time t: the world steps to t, the medium delivers what is due (a frame that ends on the air
+goes to all the robots that hear it in one parallel round, runtime/processes/lockstep_medium.py; each
+stack timer is one call), every live robot steps its
 brain and answers what it sends, how its wheels turn and what changed in its status (one call each,
 all at once), the mission script runs (its reads come from that status, its commands go to the
 robots), a robot the script commanded is asked again what it sends, and the medium takes the frames.
@@ -43,6 +44,7 @@ from rescuemesh.runtime.processes.control import (
     open_session,
 )
 from rescuemesh.runtime.processes.control_messages import BodyState, RobotSetup
+from rescuemesh.runtime.processes.lockstep_medium import LockstepMedium
 from rescuemesh.runtime.processes.remote import RemoteBrain, RemoteStack, RobotGone
 from rescuemesh.runtime.inprocess.sim_loop import SimRuntime, _position_of
 
@@ -118,6 +120,8 @@ class ProcessRuntime(SimRuntime):
     """SimRuntime with every robot in its own process. `rt.brains[name]` and `rt.stacks[name]` are
     stand-ins that read from and call into the robot (runtime/processes/remote.py)."""
 
+    medium_class = LockstepMedium
+
     def __init__(self, map_model: MapModel, starts: dict[str, Pose2D], config: SimConfig, host: WorldHost, *,
                  key_from_seed: bool = True, join_timeout_s: float = JOIN_TIMEOUT_S) -> None:
         self.host, self.key_from_seed, self.join_timeout_s = host, key_from_seed, join_timeout_s
@@ -129,8 +133,10 @@ class ProcessRuntime(SimRuntime):
         self._sent_scan: dict[str, object] = {}
         self._ticked: dict[str, tuple] = {}  # this tick's answers: (transmissions, timer, wheel command)
         self._called: set[str] = set()  # robots the mission script called into since the tick
+        self._batch: list | None = None  # one arrival's deliveries: (stand-in, request), in the medium's order
         self.time = 0.0
         super().__init__(map_model, starts, config)
+        self.medium.deliveries = self
 
     # --- the team ------------------------------------------------------------------------------
 
@@ -234,6 +240,34 @@ class ProcessRuntime(SimRuntime):
             return [], None
         return reply.transmissions, reply.timer
 
+    # --- one arrival: the frame to every robot that hears it at once (runtime/processes/lockstep_medium.py)
+
+    @property
+    def batching(self) -> bool:
+        return self._batch is not None
+
+    def begin(self) -> None:
+        self._batch = []
+
+    def deliver_later(self, stack, request) -> None:
+        """A stand-in's receive() while an arrival is delivered: sent with the others at end()."""
+        self._batch.append((stack, request))
+
+    def end(self) -> list:
+        """Send the arrival's requests to their robots together, take every answer, prime each stand-in
+        with its robot's answer (nothing, for a robot whose process is gone), and return the stand-ins
+        in the order the medium visited them."""
+        batch, self._batch = self._batch, None
+        requests = {stack.robot: request for stack, request in batch if stack.robot in self.live}
+        answers = self._call_live(requests) if requests else {}
+        for stack, _ in batch:
+            answer = answers.get(stack.robot)
+            if answer is None:  # its process is gone (or went during this round)
+                stack.prime([], None)
+            else:
+                stack.prime(answer.transmissions, answer.timer)
+        return [stack for stack, _ in batch]
+
     def _call_live(self, requests: dict) -> dict:
         answers = self.host.client.call_all(requests, tolerate=True)
         for name, answer in list(answers.items()):
@@ -289,6 +323,13 @@ class ProcessRuntime(SimRuntime):
         for name in sorted(set(self.brains) - self.live):
             rows.append({"name": name, "pid": None, "cpu_s": None, "joins": self.joins[name]})
         return rows
+
+    def control_plane(self) -> dict:
+        """The requests the world sent its robots, by type, and the rounds it waited for (one request,
+        or one parallel round to several robots), over the whole run."""
+        client = self.host.client
+        return {"requests": dict(sorted(client.requests.items())), "rounds": dict(sorted(client.rounds.items())),
+                "ticks": self.ticks}
 
     def close(self) -> None:
         """Tell every live robot to halt and leave."""

@@ -13,7 +13,9 @@ The medium calls a stack in a fixed pattern: `receive` or `handle_timer`, then `
 timer at once, and the world primes the stand-in with the same pair at every flush (after the
 brains ran and the mission script called into them). Between those calls nothing else touches a
 robot's stack, so the stand-in's cached answers are what the stack itself would say, one round trip
-per event instead of three.
+per event instead of three. While the medium delivers one frame to all its receivers
+(runtime/processes/lockstep_medium.py), receive() only queues its request with the others and answers
+False (do not collect me yet); the medium collects it once every receiver has answered.
 """
 
 from __future__ import annotations
@@ -184,8 +186,18 @@ class RemoteStack:
     def hops_histogram(self) -> Counter:
         return Counter(self.report().hops_histogram)
 
-    def receive(self, data: bytes, now: float, *, rssi_dbm: float | None = None, relay_delay_s: float = 0.0) -> None:
-        self.prime(*self._link.call_stack(self._robot, msg.Receive(data, now, rssi_dbm, relay_delay_s)))
+    @property
+    def robot(self) -> str:
+        return self._robot
+
+    def receive(self, data: bytes, now: float, *, rssi_dbm: float | None = None,
+                relay_delay_s: float = 0.0) -> bool | None:
+        request = msg.Receive(data, now, rssi_dbm, relay_delay_s)
+        if self._link.batching:  # one arrival to all its receivers at once: the medium collects us after
+            self._link.deliver_later(self, request)
+            return False
+        self.prime(*self._link.call_stack(self._robot, request))
+        return None
 
     def handle_timer(self, now: float) -> None:
         self.prime(*self._link.call_stack(self._robot, msg.Timer(now)))
