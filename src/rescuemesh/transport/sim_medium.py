@@ -67,6 +67,7 @@ from rescuemesh.radio.channel import ADV_CHANNELS
 from rescuemesh.radio.per import crc_covered_bits
 from rescuemesh.radio.streams import SEED_MASK
 from rescuemesh.transport import medium_kernels as k
+from rescuemesh.transport.front_door import FrontDoor
 
 #: At most this many events in one pump: a runaway guard.
 MAX_EVENTS_PER_PUMP = 1_000_000
@@ -290,6 +291,10 @@ class SimMedium:
         self._mean = np.zeros((0, 0))
         self._mean_valid = np.zeros((0, 0), dtype=bool)
         self._relay_delay = np.zeros(0)
+        #: The nodes' front door (front_door.py): copies a receiver would only count are counted
+        #: there, without a call to its stack. False: every copy goes to receive() (the oracle).
+        self.front_door = True
+        self._door = FrontDoor()
         #: Optional observer of every delivery (a test harness, the spoof scenario): called as
         #: observe(transmitter, receiver, data, now, deliver) and must call deliver() itself.
         self.observe: Callable[[int, int, bytes, float, Callable[[], None]], None] | None = None
@@ -315,6 +320,7 @@ class SimMedium:
         self._mean = np.full((n, n), -np.inf)
         self._mean_valid = np.eye(n, dtype=bool)  # a radio never hears itself
         self._relay_delay = np.zeros(n)
+        self._door.attach(stack)
 
     def set_radio_enabled(self, address: int, enabled: bool, now: float) -> None:
         """Switch a radio off (it neither sends nor hears; its queued frames are dropped) or on."""
@@ -509,7 +515,11 @@ class SimMedium:
         if not delivered:
             return
         data, observe, radios, rssi = transmission.data, self.observe, self._order_of, burst.rssi
-        for r in np.flatnonzero(burst.state == k.OK).tolist():
+        if observe is None and self.front_door:
+            receivers = self._door.sort(burst.state, self._addresses, transmission, BROADCAST, at)
+        else:
+            receivers = np.flatnonzero(burst.state == k.OK)
+        for r in receivers.tolist():
             receiver = radios[r]
             if observe is None:
                 if receiver.stack.receive(data, at, rssi_dbm=float(rssi[r]), relay_delay_s=float(delays[r])) is False:
