@@ -45,7 +45,7 @@ HALF_DUPLEX = CODE[LossCause.HALF_DUPLEX]
 BELOW_SENSITIVITY = CODE[LossCause.BELOW_SENSITIVITY]
 
 #: Purposes of the counter-based draws (keys of radio.streams.counter_key).
-FADING, EXTRA, RELAY_DELAY = 2, 3, 4
+FADING, EXTRA, RELAY_DELAY, RESPONSE_DELAY = 2, 3, 4, 5
 
 #: Reception counters, indices into the medium's int64 counts array: delivered, then lost by
 #: cause code (1..7), then, at the intended receivers, the source's own unicast delivered / lost,

@@ -52,6 +52,7 @@ metadata the mesh layer attaches to each Transmission, never the bytes), robots,
 from __future__ import annotations
 
 import heapq
+import inspect
 import itertools
 from collections import deque
 from collections.abc import Callable
@@ -86,24 +87,33 @@ class AirTiming:
         random delay"), drawn here and handed to the mesh layer.
     capture_db: a reception survives an overlapping one if it is at least this much stronger: 21 dB,
         the co-channel rejection a BLE receiver must meet (Core Vol 6 Part A 4.2, C/I co-channel).
+    response_delay_s: what a stack answers to a frame (a Confirm) leaves a random 20-50 ms later
+        (Mesh Profile 1.0, 3.7.3.1, for a response to a unicast message): drawn here and handed to
+        the stack. Answered at once, a Confirm met the relays of the command it answered: in a room
+        of 30 robots that relay a resent Follow, robot_12's Confirms were lost three sends in a row.
     """
 
     adv_interval_s: float = 0.020
     adv_delay_max_s: float = 0.010
     relay_delay_max_s: float = 0.010
     capture_db: float = 21.0
+    response_delay_s: tuple[float, float] = (0.020, 0.050)
 
     def __post_init__(self) -> None:
         for name in ("adv_interval_s", "adv_delay_max_s", "relay_delay_max_s", "capture_db"):
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+        low, high = self.response_delay_s
+        if not 0.0 <= low <= high:
+            raise ValueError(f"response_delay_s must be (low, high) with 0 <= low <= high, got {self.response_delay_s!r}")
 
 
 class NetworkStack(Protocol):
     """What the medium needs of a robot's stack (rescuemesh.mesh.NetworkStack has it)."""
 
-    def receive(self, data: bytes, now: float, *, rssi_dbm: float | None = None,
-                relay_delay_s: float = 0.0) -> bool | None: ...  # False: nothing new to send, no earlier timer
+    def receive(self, data: bytes, now: float, *, rssi_dbm: float | None = None, relay_delay_s: float = 0.0,
+                response_delay_s: float = 0.0) -> bool | None: ...  # False: nothing new to send, no earlier timer
+    # (response_delay_s is passed only to a stack whose receive takes it)
     def transmissions(self, now: float) -> list: ...  # rescuemesh.mesh.Transmission
     def get_timer(self) -> float | None: ...
     def handle_timer(self, now: float) -> None: ...
@@ -225,6 +235,8 @@ class _Radio:
     position: Callable[[], tuple[float, float]]
     rng: UniformStream
     enabled: bool = True
+    responds: bool = False  # its stack's receive takes response_delay_s
+    loop_phase_s: float = 0.0  # what flush() collects leaves this much later (set_loop_phase)
     transmissions: int = 0  # started so far: the counter of its draws
     queue: deque = field(default_factory=deque)
     tx_scheduled: bool = False
@@ -308,6 +320,7 @@ class SimMedium:
             raise ValueError("attach radios before frames are on the air")
         index = len(self._order_of)
         radio = self._radios[address] = _Radio(address, index, stack, position, self._stream(1, address))
+        radio.responds = "response_delay_s" in inspect.signature(stack.receive).parameters
         self._order_of.append(radio)
         n = index + 1
         self._addresses = np.append(self._addresses, np.int64(address))
@@ -334,6 +347,15 @@ class SimMedium:
                 if burst.end > now and burst.state[radio.index] == k.OK:
                     burst.state[radio.index] = k.RADIO_OFF
 
+    def set_loop_phase(self, address: int, phase_s: float) -> None:
+        """The robot's control loop runs `phase_s` after the ticks at which flush() is called: what
+        its stack hands down then leaves that much later (robots switched on at different times
+        do not run their loops in step; a team whose loops did put most of its frames on the air in
+        the 10 ms after each tick)."""
+        if not phase_s >= 0.0:
+            raise ValueError(f"loop phase must be >= 0 s, got {phase_s!r}")
+        self._radio(address).loop_phase_s = float(phase_s)
+
     def radio_enabled(self, address: int) -> bool:
         return self._radio(address).enabled
 
@@ -345,7 +367,7 @@ class SimMedium:
         self._now = max(self._now, now)
         self._positions_fresh = False
         for radio in self._order_of:
-            self._collect(radio, self._now)
+            self._collect(radio, self._now, radio.loop_phase_s)
 
     def pump(self, now: float) -> None:
         """Advance the medium to `now`: every event due by then, in time order. Frames the stacks
@@ -418,7 +440,7 @@ class SimMedium:
     def _push(self, at: float, kind: _Event, payload) -> None:
         heapq.heappush(self._heap, (at, kind, next(self._order), payload))
 
-    def _collect(self, radio: _Radio, now: float) -> None:
+    def _collect(self, radio: _Radio, now: float, phase_s: float = 0.0) -> None:
         """Queue the stack's new transmissions on its radio and re-arm its timer."""
         transmissions = radio.stack.transmissions(now)
         if transmissions:
@@ -427,7 +449,7 @@ class SimMedium:
             else:
                 radio.queue.extend(transmissions)
                 if not radio.tx_scheduled:
-                    self._schedule_start(radio, now)
+                    self._schedule_start(radio, now + phase_s)
         self._arm_timer(radio, radio.stack.get_timer())
 
     def _arm_timer(self, radio: _Radio, timer: float | None) -> None:
@@ -519,14 +541,21 @@ class SimMedium:
             receivers = self._door.sort(burst.state, self._addresses, transmission, BROADCAST, at)
         else:
             receivers = np.flatnonzero(burst.state == k.OK)
+        low, high = self.timing.response_delay_s
         for r in receivers.tolist():
             receiver = radios[r]
+            extra = {}
+            if receiver.responds and high > 0.0:
+                u = k.counter_uniform(k.counter_key(self._key, k.RESPONSE_DELAY, receiver.address, sender.address,
+                                                    burst.counter), 0)
+                extra["response_delay_s"] = low + u * (high - low)
             if observe is None:
-                if receiver.stack.receive(data, at, rssi_dbm=float(rssi[r]), relay_delay_s=float(delays[r])) is False:
+                if receiver.stack.receive(data, at, rssi_dbm=float(rssi[r]), relay_delay_s=float(delays[r]),
+                                          **extra) is False:
                     continue  # dropped: nothing new to send, no earlier timer
             else:
                 observe(sender.address, receiver.address, data, at,
-                        _delivery(receiver.stack, data, at, float(rssi[r]), float(delays[r])))
+                        _delivery(receiver.stack, data, at, float(rssi[r]), float(delays[r]), extra))
             self._collect(receiver, at)
 
     def _count_transmission(self, transmission, size: int, airtime_s: float) -> None:
@@ -542,8 +571,9 @@ class SimMedium:
             stats.segment_transmissions += 1
 
 
-def _delivery(stack: NetworkStack, data: bytes, at: float, rssi: float, relay_delay: float) -> Callable[[], None]:
+def _delivery(stack: NetworkStack, data: bytes, at: float, rssi: float, relay_delay: float,
+              extra: dict) -> Callable[[], None]:
     def deliver() -> None:
-        stack.receive(data, at, rssi_dbm=rssi, relay_delay_s=relay_delay)
+        stack.receive(data, at, rssi_dbm=rssi, relay_delay_s=relay_delay, **extra)
 
     return deliver

@@ -55,6 +55,8 @@ class SimRuntime:
         self._powering_on = {}
         for name in starts:
             at = power_on_s(robot_address(name), config.brain.power_on_spread_s)
+            # switched on at `at`, its control loop ticks at `at` + k * control_dt, not on the world's
+            self.medium.set_loop_phase(robot_address(name), at % config.control_dt)
             if at > 0.0:
                 self._powering_on[robot_address(name)] = at
                 self.medium.set_radio_enabled(robot_address(name), False, 0.0)
