@@ -186,17 +186,17 @@ class MeshNode:
             raise ValueError(f"frame from {view.src} handed to the mesh node of {self.address}")
         frame = bytes(frame)
         if len(frame) <= MAX_CONTROL_FRAME_BYTES:
-            self.stats.sent += 1
+            self._stats.sent += 1
             ttl = self._unicast_ttl(frame, view, now)
             if ttl != view.ttl:
                 frame = with_ttl(frame, ttl)
-                self.stats.sent_short_ttl += 1
+                self._stats.sent_short_ttl += 1
             self._push(now + delay_s, Transmission(self._seal(frame, epoch), view.src, view.dst, view.msg_type, view.seq,
                                          ttl, False, None, None, self._key(frame, epoch)))
         elif view.dst == BROADCAST:
             raise ValueError("a frame longer than 20 bytes is segmented and needs a unicast destination")
         else:
-            self.stats.sent += 1
+            self._stats.sent += 1
             self._tx_epoch[(view.dst, view.seq)] = epoch
             while len(self._tx_epoch) > _MAX_TX_EPOCHS:
                 del self._tx_epoch[next(iter(self._tx_epoch))]
@@ -213,7 +213,7 @@ class MeshNode:
         relay_delay_s that is negative or not finite."""
         if not (math.isfinite(relay_delay_s) and relay_delay_s >= 0.0):
             raise ValueError(f"relay_delay_s must be finite and >= 0, got {relay_delay_s!r}")
-        stats = self.stats
+        stats = self._stats
         stats.received += 1
         data = bytes(data)
         if len(data) > 3 and data[3] not in (self.address, BROADCAST) and data[0] & TTL_MASK < 2 \
@@ -268,7 +268,7 @@ class MeshNode:
     def transmissions(self, now: float) -> list[Transmission]:
         """Everything due by `now` s (relays whose delay has passed included), oldest first."""
         out = self._outbox.pop_due(now)
-        stats = self.stats
+        stats = self._stats
         stats.relays_expired = self._outbox.expired
         for item in out:
             stats.transmitted += 1
@@ -326,14 +326,14 @@ class MeshNode:
 
     def _relay(self, data: bytes, view: FrameView, due: float, key: bytes) -> None:
         if view.ttl < 2:
-            self.stats.dropped_ttl += 1
+            self._stats.dropped_ttl += 1
             return
         segment = segments = None
         if view.kind is FrameKind.SEGMENT:
             segment, last = read_segment_header(data)
             segments = last + 1
         ttl = view.ttl - 1
-        self.stats.relayed += 1
+        self._stats.relayed += 1
         relayed = Transmission(self._seal(with_ttl(data, ttl), self._rx_epoch), view.src, view.dst, view.msg_type,
                                view.seq, ttl, True, segment, segments, key)
         interval = self.config.relay_retransmit_interval_s
@@ -345,7 +345,7 @@ class MeshNode:
             self._outbox.push(due + k * interval, relayed, key, ttl, paced=segment is None)
 
     def _deliver(self, frame: bytes, src: int, hops: int, rssi_dbm: float | None, now: float) -> None:
-        self.stats.delivered += 1
+        self._stats.delivered += 1
         self._events.append(FrameDelivered(frame, src, hops, rssi_dbm, now))
 
     def _on_plain(self, data: bytes, view: FrameView, hops: int, rssi: float | None, now: float) -> None:
@@ -371,7 +371,7 @@ class MeshNode:
         data = encode_frame(header, SegmentAck(ref_seq, base, bitmap))
         self._push(now, Transmission(self._seal(data, epoch), self.address, dst, MessageType.SEGMENT_ACK, seq,
                                      ttl, False, None, None, self._key(data, epoch)))
-        self.stats.acks_sent += 1
+        self._stats.acks_sent += 1
 
     def _reassembly_closed(self, src: int, seq: int, complete: bool) -> None:
         self._replay.mark(src, seq, SegmentState.COMPLETE if complete else SegmentState.EXPIRED)

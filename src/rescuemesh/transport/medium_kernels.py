@@ -220,6 +220,15 @@ def close_receptions(sender, addresses, enabled, state, ok, dst, broadcast, extr
     return delivered, collided, dst_heard
 
 
+@compiled("void(i8[::1], i8[::1], i8, u8, i8, f8, f8, f8[::1])")
+def response_delays(receivers, addresses, sender, seed, counter, low, high, out):
+    """The response delay handed to each radio in `receivers` with the sender's `counter`-th
+    transmission: uniform in [low, high], keyed (seed, RESPONSE_DELAY, receiver, sender, counter)."""
+    me = addresses[sender]
+    for r in receivers:
+        out[r] = low + counter_uniform(counter_key(seed, RESPONSE_DELAY, addresses[r], me, counter), 0) * (high - low)
+
+
 @compiled("void(f8[:, ::1], f8, f8, f8, f8[:, ::1])")
 def cells_of(xy, quantum_m, origin_x, origin_y, out):
     """The keys the mean power depends on: each position's cell (as floats), or the position itself

@@ -303,6 +303,7 @@ class SimMedium:
         self._mean = np.zeros((0, 0))
         self._mean_valid = np.zeros((0, 0), dtype=bool)
         self._relay_delay = np.zeros(0)
+        self._response_delay = np.zeros(0)
         #: The nodes' front door (front_door.py): copies a receiver would only count are counted
         #: there, without a call to its stack. False: every copy goes to receive() (the oracle).
         self.front_door = True
@@ -333,6 +334,7 @@ class SimMedium:
         self._mean = np.full((n, n), -np.inf)
         self._mean_valid = np.eye(n, dtype=bool)  # a radio never hears itself
         self._relay_delay = np.zeros(n)
+        self._response_delay = np.zeros(n)
         self._door.attach(stack)
 
     def set_radio_enabled(self, address: int, enabled: bool, now: float) -> None:
@@ -369,10 +371,13 @@ class SimMedium:
         for radio in self._order_of:
             self._collect(radio, self._now, radio.loop_phase_s)
 
-    def pump(self, now: float) -> None:
+    def pump(self, now: float, collect: bool = True) -> None:
         """Advance the medium to `now`: every event due by then, in time order. Frames the stacks
-        queued since the last pump or flush leave at that earlier time."""
-        self.flush(self._now)  # also forgets the positions read before the world moved
+        queued since the last pump or flush leave at that earlier time (`collect` False: the caller
+        flushed after the last thing that could queue one, and the stacks are not asked again)."""
+        if collect:
+            self.flush(self._now)
+        self._positions_fresh = False  # the world may have moved since
         heap = self._heap
         for _ in range(MAX_EVENTS_PER_PUMP):
             if not heap or heap[0][0] > now:
@@ -542,13 +547,12 @@ class SimMedium:
         else:
             receivers = np.flatnonzero(burst.state == k.OK)
         low, high = self.timing.response_delay_s
+        responses = self._response_delay
+        if high > 0.0:
+            k.response_delays(receivers, self._addresses, sender.index, self._key, burst.counter, low, high, responses)
         for r in receivers.tolist():
             receiver = radios[r]
-            extra = {}
-            if receiver.responds and high > 0.0:
-                u = k.counter_uniform(k.counter_key(self._key, k.RESPONSE_DELAY, receiver.address, sender.address,
-                                                    burst.counter), 0)
-                extra["response_delay_s"] = low + u * (high - low)
+            extra = {"response_delay_s": float(responses[r])} if receiver.responds and high > 0.0 else {}
             if observe is None:
                 if receiver.stack.receive(data, at, rssi_dbm=float(rssi[r]), relay_delay_s=float(delays[r]),
                                           **extra) is False:

@@ -108,7 +108,7 @@ class SimRuntime:
         self.time = now
         if self._powering_on:
             self._power_on(now)
-        self.medium.pump(now)
+        self.medium.pump(now, collect=False)  # the last step flushed after its brains and script
         t2 = time.perf_counter()
         self._step_robots(now)
         t3 = time.perf_counter()
