@@ -79,7 +79,7 @@ def _run(front_door: bool, config: MeshConfig, seconds: float = 4.0):
                         stack.endpoint.send_data(dst, DataKind.RAW, 0, bytes(rng.integers(0, 256, 60, dtype=np.uint8)), t)
         medium.flush(t)
     nodes = [(dataclasses.asdict(s.node.stats), dataclasses.asdict(s.endpoint.stats), heard[i],
-              sorted(s.node.cache._slot)) for i, s in enumerate(stacks)]
+              sorted(s.node.cache.held(t))) for i, s in enumerate(stacks)]
     return nodes, medium.stats.as_dict()
 
 

@@ -104,6 +104,12 @@ class NetworkCache:
     def __contains__(self, key: bytes) -> bool:
         return key in self._slot
 
+    def held(self, now: float) -> set[bytes]:
+        """The keys that suppress a frame at `now` s (heard less than the lifetime ago). `len` and
+        `in` also count keys expired but not yet dropped: they go at the next check_and_add."""
+        oldest = now - self.lifetime_s
+        return {key for key, slot in self._slot.items() if self.heard[slot] > oldest}
+
     def check_and_add(self, key: bytes, now: float) -> bool:
         """True if `key` is new at `now` s (now cached), False if cached (now most recent)."""
         words, heard, heap = self.words, self.heard, self._heap

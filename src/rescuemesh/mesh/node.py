@@ -173,9 +173,9 @@ class MeshNode:
 
     # --- from the endpoint -----------------------------------------------------------------------
 
-    def send(self, frame: bytes, now: float, epoch: int = 0, delay_s: float = 0.0) -> None:
-        """Queue a logical frame our endpoint encoded: as it is up to 20 bytes (due `delay_s` s from
-        now), otherwise as segment frames paced by the timer. Raises ValueError for bytes that are not a valid frame (length
+    def send(self, frame: bytes, now: float, epoch: int = 0) -> None:
+        """Queue a logical frame our endpoint encoded: as it is up to 20 bytes, otherwise as segment
+        frames paced by the timer. Raises ValueError for bytes that are not a valid frame (length
         10..8192, version, CRC, no SEG/AUTH flag), a frame from another source, or a segmented one
         to the broadcast address."""
         try:
@@ -191,7 +191,7 @@ class MeshNode:
             if ttl != view.ttl:
                 frame = with_ttl(frame, ttl)
                 self._stats.sent_short_ttl += 1
-            self._push(now + delay_s, Transmission(self._seal(frame, epoch), view.src, view.dst, view.msg_type, view.seq,
+            self._push(now, Transmission(self._seal(frame, epoch), view.src, view.dst, view.msg_type, view.seq,
                                          ttl, False, None, None, self._key(frame, epoch)))
         elif view.dst == BROADCAST:
             raise ValueError("a frame longer than 20 bytes is segmented and needs a unicast destination")

@@ -51,20 +51,12 @@ class NetworkStack:
 
     # --- the transport's side ------------------------------------------------------------------
 
-    def receive(self, data: bytes, now: float, *, rssi_dbm: float | None = None, relay_delay_s: float = 0.0,
-                response_delay_s: float = 0.0) -> bool:
+    def receive(self, data: bytes, now: float, *, rssi_dbm: float | None = None, relay_delay_s: float = 0.0) -> bool:
         """A frame heard on the air (never raises for any bytes). False when the mesh node dropped
-        it: then there is nothing new to send and no earlier timer (see MeshNode.receive).
-        `response_delay_s`: what the endpoint answers to it (a Confirm) leaves that much later, a
-        random 20-50 ms the transport draws (Mesh Profile 1.0, 3.7.3.1: a response to a message
-        sent to a unicast address waits 20-50 ms, so that it does not meet the relays of that
-        message on the air)."""
+        it: then there is nothing new to send and no earlier timer (see MeshNode.receive)."""
         accepted = self.node.receive(data, now, rssi_dbm=rssi_dbm, relay_delay_s=relay_delay_s)
         if accepted:
             self._drain()
-            if response_delay_s > 0.0:  # what handling this frame queued: its responses
-                for frame, epoch in self.endpoint.drain(now):
-                    self.node.send(frame, now, epoch, response_delay_s)
         return accepted
 
     def transmissions(self, now: float) -> list[Transmission]:

@@ -52,7 +52,6 @@ metadata the mesh layer attaches to each Transmission, never the bytes), robots,
 from __future__ import annotations
 
 import heapq
-import inspect
 import itertools
 from collections import deque
 from collections.abc import Callable
@@ -87,10 +86,11 @@ class AirTiming:
         random delay"), drawn here and handed to the mesh layer.
     capture_db: a reception survives an overlapping one if it is at least this much stronger: 21 dB,
         the co-channel rejection a BLE receiver must meet (Core Vol 6 Part A 4.2, C/I co-channel).
-    response_delay_s: what a stack answers to a frame (a Confirm) leaves a random 20-50 ms later
-        (Mesh Profile 1.0, 3.7.3.1, for a response to a unicast message): drawn here and handed to
-        the stack. Answered at once, a Confirm met the relays of the command it answered: in a room
-        of 30 robots that relay a resent Follow, robot_12's Confirms were lost three sends in a row.
+    response_delay_s: what a stack answers as it receives a frame (a Confirm re-sent for a
+        duplicate: any frame it hands back that it did not relay) leaves a random 20-50 ms later
+        (Mesh Profile 1.0, 3.7.3.1, for a response to a unicast message), drawn here. Answered at
+        once, a Confirm met the relays of the command it answered: in a room of 30 robots that
+        relay a resent Follow, robot_12's Confirms were lost three sends in a row.
     """
 
     adv_interval_s: float = 0.020
@@ -111,9 +111,8 @@ class AirTiming:
 class NetworkStack(Protocol):
     """What the medium needs of a robot's stack (rescuemesh.mesh.NetworkStack has it)."""
 
-    def receive(self, data: bytes, now: float, *, rssi_dbm: float | None = None, relay_delay_s: float = 0.0,
-                response_delay_s: float = 0.0) -> bool | None: ...  # False: nothing new to send, no earlier timer
-    # (response_delay_s is passed only to a stack whose receive takes it)
+    def receive(self, data: bytes, now: float, *, rssi_dbm: float | None = None,
+                relay_delay_s: float = 0.0) -> bool | None: ...  # False: nothing new to send, no earlier timer
     def transmissions(self, now: float) -> list: ...  # rescuemesh.mesh.Transmission
     def get_timer(self) -> float | None: ...
     def handle_timer(self, now: float) -> None: ...
@@ -235,7 +234,6 @@ class _Radio:
     position: Callable[[], tuple[float, float]]
     rng: UniformStream
     enabled: bool = True
-    responds: bool = False  # its stack's receive takes response_delay_s
     loop_phase_s: float = 0.0  # what flush() collects leaves this much later (set_loop_phase)
     transmissions: int = 0  # started so far: the counter of its draws
     queue: deque = field(default_factory=deque)
@@ -321,7 +319,6 @@ class SimMedium:
             raise ValueError("attach radios before frames are on the air")
         index = len(self._order_of)
         radio = self._radios[address] = _Radio(address, index, stack, position, self._stream(1, address))
-        radio.responds = "response_delay_s" in inspect.signature(stack.receive).parameters
         self._order_of.append(radio)
         n = index + 1
         self._addresses = np.append(self._addresses, np.int64(address))
@@ -445,8 +442,10 @@ class SimMedium:
     def _push(self, at: float, kind: _Event, payload) -> None:
         heapq.heappush(self._heap, (at, kind, next(self._order), payload))
 
-    def _collect(self, radio: _Radio, now: float, phase_s: float = 0.0) -> None:
-        """Queue the stack's new transmissions on its radio and re-arm its timer."""
+    def _collect(self, radio: _Radio, now: float, phase_s: float = 0.0, respond_s: float = 0.0) -> None:
+        """Queue the stack's new transmissions on its radio and re-arm its timer. They leave
+        `phase_s` later (the robot's loop phase), or `respond_s` later when the stack answers a frame
+        it just received with one it did not relay (AirTiming.response_delay_s)."""
         transmissions = radio.stack.transmissions(now)
         if transmissions:
             if not radio.enabled:
@@ -454,6 +453,8 @@ class SimMedium:
             else:
                 radio.queue.extend(transmissions)
                 if not radio.tx_scheduled:
+                    if respond_s and not all(t.relayed for t in transmissions):
+                        phase_s = respond_s
                     self._schedule_start(radio, now + phase_s)
         self._arm_timer(radio, radio.stack.get_timer())
 
@@ -552,15 +553,13 @@ class SimMedium:
             k.response_delays(receivers, self._addresses, sender.index, self._key, burst.counter, low, high, responses)
         for r in receivers.tolist():
             receiver = radios[r]
-            extra = {"response_delay_s": float(responses[r])} if receiver.responds and high > 0.0 else {}
             if observe is None:
-                if receiver.stack.receive(data, at, rssi_dbm=float(rssi[r]), relay_delay_s=float(delays[r]),
-                                          **extra) is False:
+                if receiver.stack.receive(data, at, rssi_dbm=float(rssi[r]), relay_delay_s=float(delays[r])) is False:
                     continue  # dropped: nothing new to send, no earlier timer
             else:
                 observe(sender.address, receiver.address, data, at,
-                        _delivery(receiver.stack, data, at, float(rssi[r]), float(delays[r]), extra))
-            self._collect(receiver, at)
+                        _delivery(receiver.stack, data, at, float(rssi[r]), float(delays[r])))
+            self._collect(receiver, at, respond_s=float(responses[r]) if high > 0.0 else 0.0)
 
     def _count_transmission(self, transmission, size: int, airtime_s: float) -> None:
         stats = self.stats
@@ -575,9 +574,8 @@ class SimMedium:
             stats.segment_transmissions += 1
 
 
-def _delivery(stack: NetworkStack, data: bytes, at: float, rssi: float, relay_delay: float,
-              extra: dict) -> Callable[[], None]:
+def _delivery(stack: NetworkStack, data: bytes, at: float, rssi: float, relay_delay: float) -> Callable[[], None]:
     def deliver() -> None:
-        stack.receive(data, at, rssi_dbm=rssi, relay_delay_s=relay_delay, **extra)
+        stack.receive(data, at, rssi_dbm=rssi, relay_delay_s=relay_delay)
 
     return deliver
