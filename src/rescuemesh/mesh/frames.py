@@ -132,13 +132,16 @@ def read_logical(frame: bytes) -> FrameView:
     return FrameView(FrameKind.PLAIN, b0 & TTL_MASK, b1 & TYPE_MASK, src, dst, seq)
 
 
-def cache_key(data: bytes) -> bytes:
-    """Network message cache key: the frame without its TTL nibble and its integrity field.
+def cache_key(data: bytes, epoch: int | None = None) -> bytes:
+    """Network message cache key: the frame without its TTL nibble and its integrity field, after
+    the 4 bytes of `epoch` for a sealed frame (a rebooted source's frame may repeat an old one but
+    for its epoch).
 
     A frame heard through two relays (TTL differs) has one key; a resend (attempt bits) or a
     retransmitted segment (round bits) has a new one (docs/mesh.md, "The cache").
     """
-    return bytes((data[0] & ~TTL_MASK & 0xFF,)) + data[1:-INTEGRITY_BYTES]
+    key = bytes((data[0] & ~TTL_MASK & 0xFF,)) + data[1:-INTEGRITY_BYTES]
+    return key if epoch is None else epoch.to_bytes(4, "big") + key
 
 
 def with_ttl(data: bytes, ttl: int) -> bytes:

@@ -54,7 +54,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from rescuemesh.protocol import (
     BROADCAST,
@@ -75,7 +75,7 @@ from rescuemesh.protocol import (
 from .cache import NetworkCache
 from .config import MeshConfig
 from .events import FrameDelivered, MeshEvent, PeerRestarted
-from .frames import ATTEMPT_SHIFT, TTL_MASK, FrameKind, FrameView, read_logical, with_ttl
+from .frames import ATTEMPT_SHIFT, TTL_MASK, FrameKind, FrameView, cache_key, read_logical, with_ttl
 from .neighbours import NeighbourInfo, NeighbourTable
 from .outbox import Outbox
 from .reader import FrameReader
@@ -88,8 +88,7 @@ from .stats import MeshStats
 #: Types whose resends keep the first send's TTL: a PoseUpdate is superseded by the next within
 #: 0.5 s, and its resends flooding two or three hops were a third of a 30-robot convoy's airtime.
 _SUPERSEDED_TYPES = frozenset({MessageType.POSE_UPDATE})
-#: Segmented frames whose epoch the node remembers (a transfer is numbered in one epoch).
-_MAX_TX_EPOCHS = 64
+_MAX_TX_EPOCHS = 64  # segmented frames whose epoch the node remembers (a transfer is numbered in one epoch)
 _HEARTBEAT_BYTES = 17  # 6 header + active_command + init_ttl + epoch (4) + capabilities + 4 CRC
 _HEARTBEAT_INIT_TTL_BYTE = 7
 _SEGMENT_DATA_AT = 9  # header 6 + SegO|SegN 3
@@ -99,7 +98,9 @@ _SEGMENT_DATA_AT = 9  # header 6 + SegO|SegN 3
 class Transmission:
     """One frame to put on the air, with what a transport or a trace needs to know about it:
     `ttl` as sent, `relayed` True for a frame we re-broadcast, `segment` its SegO and `segments`
-    SegN + 1 for a segment frame (None otherwise)."""
+    SegN + 1 for a segment frame (None otherwise); `key`: the network cache key every receiver that
+    opens it files it under (b"" when unknown), so that a transport can recognise the copies a
+    receiver has cached without asking it (the simulated medium's front door)."""
 
     data: bytes
     src: int
@@ -110,6 +111,7 @@ class Transmission:
     relayed: bool
     segment: int | None
     segments: int | None
+    key: bytes = field(default=b"", compare=False, repr=False)
 
 
 class MeshNode:
@@ -136,19 +138,20 @@ class MeshNode:
         #: Numbers for frames the node originates (SegmentAcks): the endpoint's counter, so that
         #: one robot has one sequence. NetworkStack sets it; (seq, epoch) per call.
         self.number = self._own_number
-        self.stats = MeshStats()
-        self._cache = NetworkCache(self.config.cache_size, self.config.cache_lifetime_s)
-        self._reader = FrameReader(address, sealer, self._replay, self.stats)
+        self._stats = MeshStats()
+        #: The network message cache; a transport's front door may read it (docs/mesh.md, "The front door").
+        self.cache = NetworkCache(self.config.cache_size, self.config.cache_lifetime_s)
+        self._reader = FrameReader(address, sealer, self._replay, self._stats)
         self._neighbours = NeighbourTable(self.config)
         self._events: deque[MeshEvent] = deque()
         self._outbox: Outbox[Transmission] = Outbox(self.config.relay_suppress_after, self.config.relay_pace_s,
-                                                     self.config.relay_max_wait_s)
+                                                     self.config.relay_max_wait_s, self.cache.set_waiting)
         self._ack_seq = 0  # seq of the SegmentAcks this node originates (docs/mesh.md)
         self._sender = SarSender(
-            self.config, self.stats, self._neighbours.hops_to, self._queue_segment, self._events.append
+            self.config, self._stats, self._neighbours.hops_to, self._queue_segment, self._events.append
         )
         self._receiver = SarReceiver(
-            self.config, self.stats, self._send_ack, self._deliver, self._neighbours.init_ttl_of,
+            self.config, self._stats, self._send_ack, self._deliver, self._neighbours.init_ttl_of,
             self._replay.may_open if self._replay is not None else None,
             self._reassembly_closed if self._replay is not None else None,
         )
@@ -158,6 +161,15 @@ class MeshNode:
             FrameKind.SEGMENT: self._on_segment,
             FrameKind.SEGMENT_ACK: self._on_segment_ack,
         }
+
+    @property
+    def stats(self) -> MeshStats:
+        """What the node saw and did, the copies a transport recognised at its front door included."""
+        stats, (received, cached, passing) = self._stats, self.cache.take_counts()
+        if received:
+            stats.received, stats.dropped_cached = stats.received + received, stats.dropped_cached + cached
+            stats.dropped_passing += passing
+        return stats
 
     # --- from the endpoint -----------------------------------------------------------------------
 
@@ -174,17 +186,17 @@ class MeshNode:
             raise ValueError(f"frame from {view.src} handed to the mesh node of {self.address}")
         frame = bytes(frame)
         if len(frame) <= MAX_CONTROL_FRAME_BYTES:
-            self.stats.sent += 1
+            self._stats.sent += 1
             ttl = self._unicast_ttl(frame, view, now)
             if ttl != view.ttl:
                 frame = with_ttl(frame, ttl)
-                self.stats.sent_short_ttl += 1
+                self._stats.sent_short_ttl += 1
             self._push(now, Transmission(self._seal(frame, epoch), view.src, view.dst, view.msg_type, view.seq,
-                                         ttl, False, None, None))
+                                         ttl, False, None, None, self._key(frame, epoch)))
         elif view.dst == BROADCAST:
             raise ValueError("a frame longer than 20 bytes is segmented and needs a unicast destination")
         else:
-            self.stats.sent += 1
+            self._stats.sent += 1
             self._tx_epoch[(view.dst, view.seq)] = epoch
             while len(self._tx_epoch) > _MAX_TX_EPOCHS:
                 del self._tx_epoch[next(iter(self._tx_epoch))]
@@ -201,7 +213,7 @@ class MeshNode:
         relay_delay_s that is negative or not finite."""
         if not (math.isfinite(relay_delay_s) and relay_delay_s >= 0.0):
             raise ValueError(f"relay_delay_s must be finite and >= 0, got {relay_delay_s!r}")
-        stats = self.stats
+        stats = self._stats
         stats.received += 1
         data = bytes(data)
         if len(data) > 3 and data[3] not in (self.address, BROADCAST) and data[0] & TTL_MASK < 2 \
@@ -213,7 +225,7 @@ class MeshNode:
             return False
         data, view, key, self._rx_epoch = read
         # a frame whose relayed copies still wait here is a duplicate even if its cache entry expired
-        if not self._cache.check_and_add(key, now) or self._outbox.waiting(key):
+        if not self.cache.check_and_add(key, now) or self._outbox.waiting(key):
             stats.dropped_cached += 1
             cancelled = self._outbox.heard_again(key, view.ttl)
             if cancelled:
@@ -232,6 +244,9 @@ class MeshNode:
                 stats.dropped_replay += 1
                 return False
             if verdict is ReplayVerdict.NEW_EPOCH:
+                # its old epoch's frames no longer open here: none is recognised unopened any more
+                self.cache.hold_all()
+                self._reader.forget()
                 self._receiver.forget_source(view.src)
                 self._events.append(PeerRestarted(view.src, self._rx_epoch, now))
         stats.accepted += 1
@@ -253,7 +268,7 @@ class MeshNode:
     def transmissions(self, now: float) -> list[Transmission]:
         """Everything due by `now` s (relays whose delay has passed included), oldest first."""
         out = self._outbox.pop_due(now)
-        stats = self.stats
+        stats = self._stats
         stats.relays_expired = self._outbox.expired
         for item in out:
             stats.transmitted += 1
@@ -311,16 +326,16 @@ class MeshNode:
 
     def _relay(self, data: bytes, view: FrameView, due: float, key: bytes) -> None:
         if view.ttl < 2:
-            self.stats.dropped_ttl += 1
+            self._stats.dropped_ttl += 1
             return
         segment = segments = None
         if view.kind is FrameKind.SEGMENT:
             segment, last = read_segment_header(data)
             segments = last + 1
         ttl = view.ttl - 1
-        self.stats.relayed += 1
+        self._stats.relayed += 1
         relayed = Transmission(self._seal(with_ttl(data, ttl), self._rx_epoch), view.src, view.dst, view.msg_type,
-                               view.seq, ttl, True, segment, segments)
+                               view.seq, ttl, True, segment, segments, key)
         interval = self.config.relay_retransmit_interval_s
         # Mesh Profile 4.2.20 Relay Retransmit, for control frames. A segment is relayed once (block acks
         # repair it; 3 copies cut 2-hop bulk fivefold), a Heartbeat too (the next comes a period later).
@@ -330,7 +345,7 @@ class MeshNode:
             self._outbox.push(due + k * interval, relayed, key, ttl, paced=segment is None)
 
     def _deliver(self, frame: bytes, src: int, hops: int, rssi_dbm: float | None, now: float) -> None:
-        self.stats.delivered += 1
+        self._stats.delivered += 1
         self._events.append(FrameDelivered(frame, src, hops, rssi_dbm, now))
 
     def _on_plain(self, data: bytes, view: FrameView, hops: int, rssi: float | None, now: float) -> None:
@@ -347,7 +362,7 @@ class MeshNode:
                        now: float) -> None:
         epoch = self._tx_epoch.get((view.dst, view.seq), 0)
         self._push(now, Transmission(self._seal(data, epoch), view.src, view.dst, view.msg_type, view.seq,
-                                     view.ttl, False, index, total))
+                                     view.ttl, False, index, total, self._key(data, epoch)))
 
     def _send_ack(self, dst: int, ref_seq: int, base: int, bitmap: int, now: float) -> None:
         ttl = self.config.initial_ttl
@@ -355,8 +370,8 @@ class MeshNode:
         header = Header(PROTOCOL_VERSION, FrameFlags.NONE, ttl, 0, MessageType.SEGMENT_ACK, self.address, dst, seq)
         data = encode_frame(header, SegmentAck(ref_seq, base, bitmap))
         self._push(now, Transmission(self._seal(data, epoch), self.address, dst, MessageType.SEGMENT_ACK, seq,
-                                     ttl, False, None, None))
-        self.stats.acks_sent += 1
+                                     ttl, False, None, None, self._key(data, epoch)))
+        self._stats.acks_sent += 1
 
     def _reassembly_closed(self, src: int, seq: int, complete: bool) -> None:
         self._replay.mark(src, seq, SegmentState.COMPLETE if complete else SegmentState.EXPIRED)
@@ -371,6 +386,9 @@ class MeshNode:
 
     def _seal(self, frame: bytes, epoch: int) -> bytes:
         return frame if self.sealer is None else self.sealer.seal(frame, epoch)
+
+    def _key(self, frame: bytes, epoch: int) -> bytes:  # what FrameReader.read files it under
+        return cache_key(frame, None if self.sealer is None else epoch)
 
 
 def _announced_init_ttl(data: bytes, view: FrameView) -> int | None:

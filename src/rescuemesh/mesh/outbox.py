@@ -34,6 +34,7 @@ import heapq
 import itertools
 import math
 from dataclasses import dataclass
+from collections.abc import Callable
 from typing import Generic, TypeVar
 
 T = TypeVar("T")
@@ -50,7 +51,11 @@ class Outbox(Generic[T]):
     """Items by due time (s), oldest first at equal times; relayed copies can be suppressed."""
 
     def __init__(self, suppress_after: int | None, relay_pace_s: float = 0.0,
-                 relay_max_wait_s: float = math.inf) -> None:
+                 relay_max_wait_s: float = math.inf,
+                 on_waiting: Callable[[bytes, bool], None] | None = None) -> None:
+        """`on_waiting(key, True)` when copies of a frame start waiting here (suppressible), and
+        `on_waiting(key, False)` when none waits any longer."""
+        self._on_waiting = on_waiting
         self.suppress_after = suppress_after or 0
         self.relay_pace_s = relay_pace_s
         self.relay_max_wait_s = relay_max_wait_s
@@ -75,6 +80,8 @@ class Outbox(Generic[T]):
             waiting = self._waiting.get(key)
             if waiting is None:
                 self._waiting[key] = _Waiting(ttl, 0, {order})
+                if self._on_waiting is not None:
+                    self._on_waiting(key, True)
             else:  # another copy of a frame already waiting (Relay Retransmit, or a late echo)
                 waiting.orders.add(order)
 
@@ -97,6 +104,8 @@ class Outbox(Generic[T]):
         if waiting.heard < self.suppress_after:
             return 0
         del self._waiting[key]
+        if self._on_waiting is not None:
+            self._on_waiting(key, False)
         orders = waiting.orders
         for order in orders:
             del self._key_of[order]
@@ -147,3 +156,5 @@ class Outbox(Generic[T]):
             waiting.orders.discard(order)
             if not waiting.orders:
                 del self._waiting[key]
+                if self._on_waiting is not None:
+                    self._on_waiting(key, False)

@@ -59,13 +59,16 @@ class FrameReader:
         if view.src == self.address:
             stats.dropped_own += 1
             return None
-        key = cache_key(data)
-        if self.sealer is not None:  # a rebooted source's frame may repeat an old one but for its epoch
-            key = epoch.to_bytes(4, "big") + key
+        key = cache_key(data, None if self.sealer is None else epoch)
         read = self._recent[heard] = (data, view, key, epoch)
         if len(self._recent) > MAX_OPENED_FRAMES:
             del self._recent[next(iter(self._recent))]
         return read
+
+    def forget(self) -> None:
+        """Forget the frames read so far: a source's epoch moved on, and a frame of its old epoch
+        must be opened again (it no longer opens)."""
+        self._recent.clear()
 
     def _open(self, data: bytes) -> tuple[bytes, int] | None:
         """The CRC frame inside an authenticated one and its epoch, or None (counted)."""

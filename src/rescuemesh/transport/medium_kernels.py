@@ -45,7 +45,7 @@ HALF_DUPLEX = CODE[LossCause.HALF_DUPLEX]
 BELOW_SENSITIVITY = CODE[LossCause.BELOW_SENSITIVITY]
 
 #: Purposes of the counter-based draws (keys of radio.streams.counter_key).
-FADING, EXTRA, RELAY_DELAY = 2, 3, 4
+FADING, EXTRA, RELAY_DELAY, RESPONSE_DELAY = 2, 3, 4, 5
 
 #: Reception counters, indices into the medium's int64 counts array: delivered, then lost by
 #: cause code (1..7), then, at the intended receivers, the source's own unicast delivered / lost,
@@ -218,6 +218,15 @@ def close_receptions(sender, addresses, enabled, state, ok, dst, broadcast, extr
             relay_delay[r] = counter_uniform(counter_key(seed, RELAY_DELAY, address, me, counter), 0) \
                 * relay_delay_max_s
     return delivered, collided, dst_heard
+
+
+@compiled("void(i8[::1], i8[::1], i8, u8, i8, f8, f8, f8[::1])")
+def response_delays(receivers, addresses, sender, seed, counter, low, high, out):
+    """The response delay handed to each radio in `receivers` with the sender's `counter`-th
+    transmission: uniform in [low, high], keyed (seed, RESPONSE_DELAY, receiver, sender, counter)."""
+    me = addresses[sender]
+    for r in receivers:
+        out[r] = low + counter_uniform(counter_key(seed, RESPONSE_DELAY, addresses[r], me, counter), 0) * (high - low)
 
 
 @compiled("void(f8[:, ::1], f8, f8, f8, f8[:, ::1])")

@@ -67,6 +67,7 @@ from rescuemesh.radio.channel import ADV_CHANNELS
 from rescuemesh.radio.per import crc_covered_bits
 from rescuemesh.radio.streams import SEED_MASK
 from rescuemesh.transport import medium_kernels as k
+from rescuemesh.transport.front_door import FrontDoor
 
 #: At most this many events in one pump: a runaway guard.
 MAX_EVENTS_PER_PUMP = 1_000_000
@@ -85,17 +86,26 @@ class AirTiming:
         random delay"), drawn here and handed to the mesh layer.
     capture_db: a reception survives an overlapping one if it is at least this much stronger: 21 dB,
         the co-channel rejection a BLE receiver must meet (Core Vol 6 Part A 4.2, C/I co-channel).
+    response_delay_s: what a stack answers as it receives a frame (a Confirm re-sent for a
+        duplicate: any frame it hands back that it did not relay) leaves a random 20-50 ms later
+        (Mesh Profile 1.0, 3.7.3.1, for a response to a unicast message), drawn here. Answered at
+        once, a Confirm met the relays of the command it answered: in a room of 30 robots that
+        relay a resent Follow, robot_12's Confirms were lost three sends in a row.
     """
 
     adv_interval_s: float = 0.020
     adv_delay_max_s: float = 0.010
     relay_delay_max_s: float = 0.010
     capture_db: float = 21.0
+    response_delay_s: tuple[float, float] = (0.020, 0.050)
 
     def __post_init__(self) -> None:
         for name in ("adv_interval_s", "adv_delay_max_s", "relay_delay_max_s", "capture_db"):
             if not getattr(self, name) >= 0.0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+        low, high = self.response_delay_s
+        if not 0.0 <= low <= high:
+            raise ValueError(f"response_delay_s must be (low, high) with 0 <= low <= high, got {self.response_delay_s!r}")
 
 
 class NetworkStack(Protocol):
@@ -224,6 +234,7 @@ class _Radio:
     position: Callable[[], tuple[float, float]]
     rng: UniformStream
     enabled: bool = True
+    loop_phase_s: float = 0.0  # what flush() collects leaves this much later (set_loop_phase)
     transmissions: int = 0  # started so far: the counter of its draws
     queue: deque = field(default_factory=deque)
     tx_scheduled: bool = False
@@ -290,6 +301,11 @@ class SimMedium:
         self._mean = np.zeros((0, 0))
         self._mean_valid = np.zeros((0, 0), dtype=bool)
         self._relay_delay = np.zeros(0)
+        self._response_delay = np.zeros(0)
+        #: The nodes' front door (front_door.py): copies a receiver would only count are counted
+        #: there, without a call to its stack. False: every copy goes to receive() (the oracle).
+        self.front_door = True
+        self._door = FrontDoor()
         #: Optional observer of every delivery (a test harness, the spoof scenario): called as
         #: observe(transmitter, receiver, data, now, deliver) and must call deliver() itself.
         self.observe: Callable[[int, int, bytes, float, Callable[[], None]], None] | None = None
@@ -315,6 +331,8 @@ class SimMedium:
         self._mean = np.full((n, n), -np.inf)
         self._mean_valid = np.eye(n, dtype=bool)  # a radio never hears itself
         self._relay_delay = np.zeros(n)
+        self._response_delay = np.zeros(n)
+        self._door.attach(stack)
 
     def set_radio_enabled(self, address: int, enabled: bool, now: float) -> None:
         """Switch a radio off (it neither sends nor hears; its queued frames are dropped) or on."""
@@ -328,6 +346,15 @@ class SimMedium:
                 if burst.end > now and burst.state[radio.index] == k.OK:
                     burst.state[radio.index] = k.RADIO_OFF
 
+    def set_loop_phase(self, address: int, phase_s: float) -> None:
+        """The robot's control loop runs `phase_s` after the ticks at which flush() is called: what
+        its stack hands down then leaves that much later (robots switched on at different times
+        do not run their loops in step; a team whose loops did put most of its frames on the air in
+        the 10 ms after each tick)."""
+        if not phase_s >= 0.0:
+            raise ValueError(f"loop phase must be >= 0 s, got {phase_s!r}")
+        self._radio(address).loop_phase_s = float(phase_s)
+
     def radio_enabled(self, address: int) -> bool:
         return self._radio(address).enabled
 
@@ -339,12 +366,15 @@ class SimMedium:
         self._now = max(self._now, now)
         self._positions_fresh = False
         for radio in self._order_of:
-            self._collect(radio, self._now)
+            self._collect(radio, self._now, radio.loop_phase_s)
 
-    def pump(self, now: float) -> None:
+    def pump(self, now: float, collect: bool = True) -> None:
         """Advance the medium to `now`: every event due by then, in time order. Frames the stacks
-        queued since the last pump or flush leave at that earlier time."""
-        self.flush(self._now)  # also forgets the positions read before the world moved
+        queued since the last pump or flush leave at that earlier time (`collect` False: the caller
+        flushed after the last thing that could queue one, and the stacks are not asked again)."""
+        if collect:
+            self.flush(self._now)
+        self._positions_fresh = False  # the world may have moved since
         heap = self._heap
         for _ in range(MAX_EVENTS_PER_PUMP):
             if not heap or heap[0][0] > now:
@@ -412,8 +442,10 @@ class SimMedium:
     def _push(self, at: float, kind: _Event, payload) -> None:
         heapq.heappush(self._heap, (at, kind, next(self._order), payload))
 
-    def _collect(self, radio: _Radio, now: float) -> None:
-        """Queue the stack's new transmissions on its radio and re-arm its timer."""
+    def _collect(self, radio: _Radio, now: float, phase_s: float = 0.0, respond_s: float = 0.0) -> None:
+        """Queue the stack's new transmissions on its radio and re-arm its timer. They leave
+        `phase_s` later (the robot's loop phase), or `respond_s` later when the stack answers a frame
+        it just received with one it did not relay (AirTiming.response_delay_s)."""
         transmissions = radio.stack.transmissions(now)
         if transmissions:
             if not radio.enabled:
@@ -421,7 +453,9 @@ class SimMedium:
             else:
                 radio.queue.extend(transmissions)
                 if not radio.tx_scheduled:
-                    self._schedule_start(radio, now)
+                    if respond_s and not all(t.relayed for t in transmissions):
+                        phase_s = respond_s
+                    self._schedule_start(radio, now + phase_s)
         self._arm_timer(radio, radio.stack.get_timer())
 
     def _arm_timer(self, radio: _Radio, timer: float | None) -> None:
@@ -509,7 +543,15 @@ class SimMedium:
         if not delivered:
             return
         data, observe, radios, rssi = transmission.data, self.observe, self._order_of, burst.rssi
-        for r in np.flatnonzero(burst.state == k.OK).tolist():
+        if observe is None and self.front_door:
+            receivers = self._door.sort(burst.state, self._addresses, transmission, BROADCAST, at)
+        else:
+            receivers = np.flatnonzero(burst.state == k.OK)
+        low, high = self.timing.response_delay_s
+        responses = self._response_delay
+        if high > 0.0:
+            k.response_delays(receivers, self._addresses, sender.index, self._key, burst.counter, low, high, responses)
+        for r in receivers.tolist():
             receiver = radios[r]
             if observe is None:
                 if receiver.stack.receive(data, at, rssi_dbm=float(rssi[r]), relay_delay_s=float(delays[r])) is False:
@@ -517,7 +559,7 @@ class SimMedium:
             else:
                 observe(sender.address, receiver.address, data, at,
                         _delivery(receiver.stack, data, at, float(rssi[r]), float(delays[r])))
-            self._collect(receiver, at)
+            self._collect(receiver, at, respond_s=float(responses[r]) if high > 0.0 else 0.0)
 
     def _count_transmission(self, transmission, size: int, airtime_s: float) -> None:
         stats = self.stats

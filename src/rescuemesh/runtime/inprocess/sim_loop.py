@@ -58,6 +58,8 @@ class SimRuntime:
         self._powering_on = {}
         for name in starts:
             at = power_on_s(robot_address(name), config.brain.power_on_spread_s)
+            # switched on at `at`, its control loop ticks at `at` + k * control_dt, not on the world's
+            self.medium.set_loop_phase(robot_address(name), at % config.control_dt)
             if at > 0.0:
                 self._powering_on[robot_address(name)] = at
                 self.medium.set_radio_enabled(robot_address(name), False, 0.0)
@@ -109,7 +111,7 @@ class SimRuntime:
         self.time = now
         if self._powering_on:
             self._power_on(now)
-        self.medium.pump(now)
+        self.medium.pump(now, collect=False)  # the last step flushed after its brains and script
         t2 = time.perf_counter()
         self._step_robots(now)
         t3 = time.perf_counter()
