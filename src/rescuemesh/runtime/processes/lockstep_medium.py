@@ -43,5 +43,8 @@ class LockstepMedium(SimMedium):
             super()._arrive(burst, at)
         finally:
             stacks = deliveries.end()
-        for stack in stacks:
-            self._collect(self._radio(stack.address), at)
+        high = self.timing.response_delay_s[1]
+        for stack in stacks:  # each with the response delay the medium drew for it in this arrival
+            radio = self._radio(stack.address)
+            respond_s = float(self._response_delay[radio.index]) if high > 0.0 else 0.0
+            self._collect(radio, at, respond_s=respond_s)
