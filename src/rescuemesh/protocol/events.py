@@ -1,7 +1,5 @@
-"""Events the Endpoint hands to its application, pulled with `Endpoint.next_event()` (None when empty).
+"""Events the Endpoint hands to its application (`Endpoint.next_event()`), each an EndpointEvent with `now`.
 Owns the event dataclasses only; must not know how they are produced or what the application does.
-Every event is an EndpointEvent (as every mesh event is a MeshEvent) and carries `now` (s); one for
-a received frame also carries `hops`: the radio hops it crossed (mesh-layer fact).
 """
 
 from __future__ import annotations
@@ -14,7 +12,9 @@ from .messages import Command, DataKind, Message, MessageType, Pose, Reason, Res
 
 @dataclass(frozen=True, slots=True)
 class EndpointEvent:
-    """Base class of every endpoint event: consumers dispatch on `type(event)` through a table."""
+    """Base class of every endpoint event (as every mesh event is a MeshEvent): consumers dispatch on
+    `type(event)` through a table. Every event carries `now` (s); one for a received frame also carries
+    `hops`, the radio hops it crossed (a mesh-layer fact)."""
 
 
 @dataclass(frozen=True, slots=True)
