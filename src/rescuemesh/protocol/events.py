@@ -1,7 +1,6 @@
-"""Events the Endpoint hands to its application, pulled with `Endpoint.next_event()` (None when empty).
-Owns the event dataclasses only; must not know how they are produced or what the application does.
-Every event is an EndpointEvent (as every mesh event is a MeshEvent) and carries `now` (s); one for
-a received frame also carries `hops`: the radio hops it crossed (mesh-layer fact).
+"""Events the Endpoint hands to its application (`Endpoint.next_event()`), all EndpointEvents, with `now` (s)
+and, for a received frame, `hops`: the radio hops it crossed. Owns the event dataclasses only;
+must not know how they are produced or what the application does.
 """
 
 from __future__ import annotations
