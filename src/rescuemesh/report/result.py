@@ -111,7 +111,8 @@ def protocol_summary(rt) -> dict:
         "commands_failed": sum(1 for c in commands if c.failed),
         "commands_pending": sum(1 for c in commands if not c.failed and c.result is None),
         "streams_failed": sum(1 for c in commands if not c.failed and c.result is not None
-                              and c.msg_type is MessageType.FOLLOW and c.reason in (Reason.LINK_LOST, Reason.PARTNER_SILENT)),
+                              and c.msg_type is MessageType.FOLLOW
+                              and c.reason in (Reason.LINK_LOST, Reason.PARTNER_SILENT)),
         "automatic_stops": {"sent": len(automatic), "confirmed": sum(1 for c in automatic if c.confirmed_s is not None),
                             "failed": sum(1 for c in automatic if c.failed),
                             "pending": sum(1 for c in automatic if not c.failed and c.result is None)},

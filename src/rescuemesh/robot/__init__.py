@@ -9,4 +9,5 @@ from rescuemesh.robot.events import BrainEvent, BrainEventKind
 from rescuemesh.robot.records import BrainConfig, FinishedBehaviour
 from rescuemesh.robot.naming import robot_address, robot_name
 
-__all__ = ["BrainConfig", "BrainEvent", "BrainEventKind", "FinishedBehaviour", "RobotBrain", "robot_address", "robot_name"]
+__all__ = ["BrainConfig", "BrainEvent", "BrainEventKind", "FinishedBehaviour", "RobotBrain", "robot_address",
+           "robot_name"]
