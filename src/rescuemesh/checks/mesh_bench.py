@@ -41,8 +41,8 @@ def _team(positions: list[tuple[float, float]], seed: int, *, extra_loss: float 
     sealer = FrameSealer.from_team_key(team_key_from_seed(seed))
     stacks = []
     for address, xy in enumerate(positions, start=1):
-        endpoint = Endpoint(address, EndpointConfig(initial_ttl=7))
         config = MeshConfig(relay=relay, relay_retransmit_count=TEAM_RELAY_RETRANSMIT_COUNT)
+        endpoint = Endpoint(address, EndpointConfig(initial_ttl=config.initial_ttl))
         stack = NetworkStack(endpoint, MeshNode(address, config, sealer))
         medium.attach(address, stack, lambda xy=xy: xy)
         stacks.append(stack)

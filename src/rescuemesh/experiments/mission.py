@@ -440,7 +440,7 @@ class MissionScenario(Scenario):
         if isinstance(trigger, OnTeamUp):
             config = rt.config.brain
             last = max(power_on_s(robot_address(name), config.power_on_spread_s) for name in self.robots)
-            return rt.time >= (last + config.heartbeat_period_s if last > 0.0 else 0.0)
+            return rt.time >= (last + rt.config.mesh.heartbeat_period_s if last > 0.0 else 0.0)
         if isinstance(trigger, OnAnswered):
             return bool(self._by_name[trigger.step].results)
         if isinstance(trigger, OnGivenUp):

@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from rescuemesh.protocol import MAX_TTL
+from rescuemesh.protocol.wire import DEFAULT_TTL, MAX_TTL
 
 
 def _positive(name: str, value: object) -> None:
@@ -62,7 +62,8 @@ class MeshConfig:
         timeout 150 ms), and a copy older than the neighbours' cache entries would flood again.
         math.inf: never.
     initial_ttl: TTL the team originates frames with, in hops (0..15); used to count hops from a
-        source whose Heartbeat (which carries its own init_ttl) has not been heard.
+        source whose Heartbeat (which carries its own init_ttl) has not been heard. Default: the
+        protocol's DEFAULT_TTL (7); a robot's endpoint is built with this value (runtime/assembly.py).
     unicast_ttl_from_hops: a unicast control frame, on its first send, to a destination heard
         recently (not lost) h hops away goes out with TTL min(initial_ttl, h + 1) instead of
         initial_ttl: one hop of slack, not a flood across the team (Mesh Profile 1.0, 3.6.7: hop
@@ -74,6 +75,10 @@ class MeshConfig:
         a command over a 30 % loss link was confirmed within 2 s 93 % of the time, 99.95 % with 1).
     heartbeat_ttl: TTL our Heartbeats go out with and announce (Heartbeat Publication TTL, Mesh
         Profile 4.2.17; None: initial_ttl): 3 reaches partners two hops away, not a team of 30.
+        3 against initial_ttl's 7 on purpose: a Heartbeat only has to reach the partners whose
+        liveness a robot tracks, a command must cross the whole team. The endpoint's own default
+        (EndpointConfig.heartbeat_ttl None: initial_ttl) is for an endpoint without a mesh; a
+        team's endpoints take this value instead (runtime/assembly.py).
     heartbeat_relay_delay_scale: a relayed Heartbeat waits the caller's relay delay times this
         (5: 0..50 ms), so that most relays hear another's copy first and cancel theirs (counter-
         based suppression); commands keep the short delay. 30 robots: 6.7 relays a beat at 1,
@@ -85,10 +90,14 @@ class MeshConfig:
         than a flood lives, shorter than four SAR rounds (a segment's round bits repeat mod 4).
     heartbeat_period_s, lost_after_missed: a neighbour is lost once
         now >= last_heard + (lost_after_missed + 0.5) * heartbeat_period_s (half a period of grace).
+        The one source of the heartbeat period: the robot above sends its Heartbeats this often
+        (NetworkStack.heartbeat_period_s), so the count of missed ones means what it says.
     neighbour_expiry_s: a neighbour unheard this long, in s, is forgotten.
     segment_interval_s: at most one segment per interval, in s (Mesh Protocol 1.1 default 20 ms).
     sar_ack_base_s + sar_per_hop_s * hops: receiver's ack timer, in s (Mesh Profile 1.0 3.5.3.4:
-        >= 150 + 50 * TTL ms). sar_retransmit_base_s + sar_per_hop_s * hops: sender's wait after
+        >= 150 + 50 * TTL ms). Same numbers as the endpoint's confirm timeout (ReliabilityConfig
+        ack_timeout_s + per_hop_timeout_s, from the same rule) but another timer: a segment's block
+        ack here, an end-to-end Confirm there; each tunes apart. sar_retransmit_base_s + sar_per_hop_s * hops: sender's wait after
         the last segment of a round, in s (3.5.3.3: >= 200 + 50 * TTL ms).
     duplicate_ack_interval_s: a segment the receiver already holds means its last ack was lost:
         it acks again at once, at most once per this interval, in s (docs/mesh.md, "Acks").
@@ -105,7 +114,7 @@ class MeshConfig:
     relay_suppress_after: int | None = 1
     relay_pace_s: float = 0.03
     relay_max_wait_s: float = 0.1
-    initial_ttl: int = 7
+    initial_ttl: int = DEFAULT_TTL
     unicast_ttl_from_hops: bool = True
     unicast_ttl_slack: int = 0
     sparse_neighbours: int = 6

@@ -49,6 +49,12 @@ class NetworkStack:
     def address(self) -> int:
         return self.endpoint.address
 
+    @property
+    def heartbeat_period_s(self) -> float:
+        """How often the robot above sends a Heartbeat, in s: the node's MeshConfig.heartbeat_period_s,
+        the period its neighbour table counts missed Heartbeats in (the one source of it)."""
+        return self.node.config.heartbeat_period_s
+
     # --- the transport's side ------------------------------------------------------------------
 
     def receive(self, data: bytes, now: float, *, rssi_dbm: float | None = None, relay_delay_s: float = 0.0) -> bool:

@@ -89,7 +89,7 @@ class RobotBrain(LinkLossAndReports, SensorCommands):
     def __init__(self, name: str, body: Body, network, nav: NavigateToPose, costmap: Costmap,
                  config: BrainConfig | None = None) -> None:
         """`network`: the robot's network stack (rescuemesh.mesh.NetworkStack: `.endpoint`,
-        `next_event()`, `is_reachable(address, now)`)."""
+        `next_event()`, `is_reachable(address, now)`, `heartbeat_period_s`)."""
         self.name = name
         self.address = network.endpoint.address
         self.body = body
@@ -125,7 +125,7 @@ class RobotBrain(LinkLossAndReports, SensorCommands):
         #: When this robot is switched on (BrainConfig.power_on_spread_s); it does nothing before.
         self.power_on_s = power_on_s(self.address, self.config.power_on_spread_s)
         self._next_heartbeat_s = 0.0  # the first at once (peers learn our epoch from it), then on our phase
-        self._heartbeat_phase_s = heartbeat_phase_s(self.address, self.config.heartbeat_period_s)
+        self._heartbeat_phase_s = heartbeat_phase_s(self.address, network.heartbeat_period_s)
         #: Each command type's handler, named in robot/commands.py's table.
         self._handlers = {msg_type: getattr(self, row.handler) for msg_type, row in COMMANDS.items()}
         self._on_protocol = {
@@ -228,7 +228,7 @@ class RobotBrain(LinkLossAndReports, SensorCommands):
         if now >= self._next_heartbeat_s:
             active = self.running.msg_type if self.running and self.running.msg_type else 0
             self.endpoint.send_heartbeat(now, active_command=int(active), capabilities=int(self.capabilities))
-            period = self.config.heartbeat_period_s
+            period = self.network.heartbeat_period_s  # the mesh node's: it counts missed ones
             if self._heartbeat_phase_s is not None:  # after the first: on this robot's phase
                 self._next_heartbeat_s = now + (self._heartbeat_phase_s - now) % period or period
                 self._heartbeat_phase_s = None

@@ -45,7 +45,6 @@ class BrainConfig:
 
     follow_distance_m: float = 1.0
     pose_update_rate_hz: float = 2.0
-    heartbeat_period_s: float = 1.0  # must equal the mesh layer's (it counts missed heartbeats)
     partner_timeout_s: float = 1.5  # a follower halts when its leader sends no PoseUpdate this long (3 updates)
     reconnect_window_s: float = 5.0  # after a peer is lost: resume if heard again within it, else FAILED
     #: Safety nets for a link that works one way only (heartbeats heard, PoseUpdates not): a follower

@@ -47,7 +47,7 @@ def assemble_robot(name: str, body: Body, costmap: Costmap, config: SimConfig, s
     """Robot `name`'s brain and network stack on `body`. `start` is where Return goes unless the
     brain config names a base; `epoch` is the endpoint's boot counter (a restarted robot counts up)."""
     address = robot_address(name)
-    mesh = replace(config.mesh, relay=config.relay)
+    mesh = config.mesh  # carries config.relay (SimConfig writes it in)
     endpoint = Endpoint(address, EndpointConfig(reliability=reliability_for(config), initial_ttl=mesh.initial_ttl,
                                                 heartbeat_ttl=mesh.heartbeat_ttl, initial_epoch=epoch))
     stack = NetworkStack(endpoint, MeshNode(address, mesh, sealer))

@@ -155,7 +155,7 @@ class ConvoyScenario(Scenario):
         frames), as an operator starts a team's mission once it is up."""
         config = rt.config.brain
         last = max(power_on_s(robot_address(name), config.power_on_spread_s) for name in self.robots)
-        return last + config.heartbeat_period_s if last > 0.0 else 0.0
+        return last + rt.config.mesh.heartbeat_period_s if last > 0.0 else 0.0
 
     def _form(self, rt: SimRuntime, now: float) -> None:
         """One link at a time from the front: robot_k asks robot_k+1 once robot_k itself follows."""

@@ -56,8 +56,7 @@ class DisconnectScenario(FollowScenario):
         self._timings = None
 
     def link_loss_timeout_s(self, rt: SimRuntime) -> float:
-        mesh = rt.config.mesh
-        return (mesh.lost_after_missed + 0.5) * mesh.heartbeat_period_s
+        return rt.config.mesh.lost_after_seconds
 
     def expectation(self, rt: SimRuntime) -> str:
         """"resume", "fail" or "either": what the link-loss rule must do with this outage."""
