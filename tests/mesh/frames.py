@@ -2,19 +2,9 @@
 
 from __future__ import annotations
 
-from rescuemesh.protocol import (
-    BROADCAST,
-    Data,
-    DataKind,
-    FrameFlags,
-    Header,
-    Heartbeat,
-    MessageType,
-    Pose,
-    PoseUpdate,
-    Stop,
-    encode_frame,
-)
+from rescuemesh.protocol import BROADCAST, DataKind, MessageType, Pose, Stop, encode_frame
+from rescuemesh.protocol.codec import FrameFlags, Header
+from rescuemesh.protocol.messages import Data, Heartbeat, PoseUpdate
 
 
 def heartbeat(src: int, seq: int, ttl: int = 7, init_ttl: int | None = None) -> bytes:

@@ -9,24 +9,10 @@ from rescuemesh.mesh import MeshConfig, MeshNode, NetworkStack, PeerRestarted
 from rescuemesh.mesh.keys import derive_frame_key, team_key_from_seed
 from rescuemesh.mesh.security import FrameSealer
 from rescuemesh.protocol import (
-    PROTOCOL_VERSION,
-    CommandReceived,
-    Confirm,
-    ConfirmReceived,
-    DeliveryFailed,
-    Endpoint,
-    EndpointConfig,
-    Follow,
-    FrameFlags,
-    Header,
-    HeartbeatReceived,
-    MessageType,
-    Pose,
-    ReliabilityConfig,
-    ResultCode,
-    Stop,
-    encode_frame,
-)
+    CommandReceived, ConfirmReceived, DeliveryFailed, Endpoint, EndpointConfig, Follow, HeartbeatReceived,
+    MessageType, Pose, ReliabilityConfig, ResultCode, Stop, encode_frame)
+from rescuemesh.protocol.codec import PROTOCOL_VERSION, FrameFlags, Header
+from rescuemesh.protocol.messages import Confirm
 
 TEAM = FrameSealer(derive_frame_key(team_key_from_seed(1)))
 INTRUDER = FrameSealer(derive_frame_key(team_key_from_seed(2)))  # a key, but not the team's

@@ -11,7 +11,7 @@ from rescuemesh.mesh.reader import MAX_OPENED_FRAMES, FrameReader
 from rescuemesh.mesh.replay import ReplayWindow
 from rescuemesh.mesh.security import FrameSealer
 from rescuemesh.mesh.stats import MeshStats
-from rescuemesh.protocol import IntegrityError
+from rescuemesh.protocol.errors import IntegrityError
 
 from .frames import stop
 

@@ -9,7 +9,8 @@ from hypothesis import strategies as st
 from rescuemesh.mesh import FrameDelivered, MeshConfig, MeshNode
 from rescuemesh.mesh.frames import with_ttl
 from rescuemesh.mesh.segments import make_segment, segment_count
-from rescuemesh.protocol import MessageType, SegmentAck, decode_frame
+from rescuemesh.protocol import MessageType, decode_frame
+from rescuemesh.protocol.messages import SegmentAck
 
 from .chain import frame as raw_frame
 from .frames import data

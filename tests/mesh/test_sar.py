@@ -7,7 +7,8 @@ import random
 import pytest
 
 from rescuemesh.mesh import FrameDelivered, MeshConfig, MeshNode, TransferComplete, TransferFailed
-from rescuemesh.protocol import MessageType, SegmentAck, decode_frame
+from rescuemesh.protocol import MessageType, decode_frame
+from rescuemesh.protocol.messages import SegmentAck
 
 from .chain import chain
 from .frames import data, stop
@@ -157,7 +158,8 @@ def test_with_nothing_known_missing_a_round_is_a_single_probe():
 
 
 def ack_frame(src: int, dst: int, ref_seq: int, base: int, bitmap: int, seq: int = 0) -> bytes:
-    from rescuemesh.protocol import FrameFlags, Header, encode_frame
+    from rescuemesh.protocol import encode_frame
+    from rescuemesh.protocol.codec import FrameFlags, Header
 
     header = Header(1, FrameFlags.NONE, 7, 0, MessageType.SEGMENT_ACK, src, dst, seq)
     return encode_frame(header, SegmentAck(ref_seq, base, bitmap))

@@ -27,31 +27,10 @@ from rescuemesh.mesh.security import (
 )
 from rescuemesh.mesh.segments import make_segment, parse_segment, segment_count
 from rescuemesh.protocol import (
-    BROADCAST,
-    Confirm,
-    Data,
-    DataKind,
-    Follow,
-    ForwardMsg,
-    FrameError,
-    FrameFlags,
-    Goto,
-    Header,
-    LandOnTop,
-    MessageType,
-    MoveAround,
-    Pose,
-    PoseUpdate,
-    Return,
-    ResultCode,
-    SegmentAck,
-    ShowCam,
-    ShowScan,
-    Stop,
-    decode_frame,
-    encode_frame,
-    encode_inner,
-)
+    BROADCAST, DataKind, Follow, ForwardMsg, FrameError, Goto, LandOnTop, MessageType, MoveAround, Pose,
+    Return, ResultCode, ShowCam, ShowScan, Stop, decode_frame, encode_frame)
+from rescuemesh.protocol.codec import FrameFlags, Header, encode_inner
+from rescuemesh.protocol.messages import Confirm, Data, PoseUpdate, SegmentAck
 
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "protocol.md"
 KEY = derive_frame_key(bytes(range(16)))

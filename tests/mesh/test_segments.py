@@ -24,7 +24,8 @@ from rescuemesh.mesh.segments import (
     rebuild_frame,
     segment_count,
 )
-from rescuemesh.protocol import MalformedPayload, decode_frame
+from rescuemesh.protocol import decode_frame
+from rescuemesh.protocol.errors import MalformedPayload
 
 from .chain import frame as raw_frame
 from .frames import data, stop

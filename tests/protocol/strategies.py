@@ -5,31 +5,11 @@ from __future__ import annotations
 from hypothesis import strategies as st
 
 from rescuemesh.protocol import (
-    COMMAND_TYPES,
-    CONFIRMABLE_TYPES,
-    MAX_FORWARD_MESSAGE_BYTES,
-    Confirm,
-    Data,
-    DataKind,
-    Follow,
-    ForwardMsg,
-    FrameFlags,
-    Goto,
-    Header,
-    Heartbeat,
-    LandOnTop,
-    MessageType,
-    MoveAround,
-    Pose,
-    PoseUpdate,
-    Reason,
-    ResultCode,
-    Return,
-    SegmentAck,
-    ShowCam,
-    ShowScan,
-    Stop,
-)
+    DataKind, Follow, ForwardMsg, Goto, LandOnTop, MessageType, MoveAround, Pose, Reason, ResultCode, Return,
+    ShowCam, ShowScan, Stop)
+from rescuemesh.protocol.codec import MAX_FORWARD_MESSAGE_BYTES, FrameFlags, Header
+from rescuemesh.protocol.messages import (
+    COMMAND_TYPES, CONFIRMABLE_TYPES, Confirm, Data, Heartbeat, PoseUpdate, SegmentAck)
 
 coords = st.floats(-327.67, 327.67, allow_nan=False)
 yaws = st.floats(-1000.0, 1000.0, allow_nan=False)

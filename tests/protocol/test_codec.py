@@ -12,47 +12,15 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from rescuemesh.protocol import (
-    BROADCAST,
-    MAX_CONTROL_FRAME_BYTES,
-    MAX_FORWARD_MESSAGE_BYTES,
-    PAYLOAD_BYTES,
-    Confirm,
-    EncodeError,
-    Follow,
-    ForwardMsg,
-    FrameError,
-    FrameFlags,
-    Goto,
-    Header,
-    Heartbeat,
-    MAX_FORWARD_INNER_BYTES,
-    MAX_MESSAGE_BYTES,
-    Data,
-    DataKind,
-    Reason,
-    SegmentAck,
-    IntegrityError,
-    LandOnTop,
-    MalformedPayload,
-    MessageType,
-    MoveAround,
-    Pose,
-    PoseUpdate,
-    ResultCode,
-    Return,
-    ShowCam,
-    ShowScan,
-    Stop,
-    TruncatedFrame,
-    UnknownMessageType,
-    UnsupportedFeature,
-    UnsupportedVersion,
-    decode_frame,
-    decode_inner,
-    encode_frame,
-    encode_inner,
-    max_frame_bytes,
-)
+    BROADCAST, EncodeError, Follow, ForwardMsg, FrameError, Goto, DataKind, Reason, LandOnTop, MessageType,
+    MoveAround, Pose, ResultCode, Return, ShowCam, ShowScan, Stop, decode_frame, encode_frame)
+from rescuemesh.protocol.codec import (
+    MAX_CONTROL_FRAME_BYTES, MAX_FORWARD_MESSAGE_BYTES, PAYLOAD_BYTES, FrameFlags, Header,
+    MAX_FORWARD_INNER_BYTES, MAX_MESSAGE_BYTES, decode_inner, encode_inner, max_frame_bytes)
+from rescuemesh.protocol.errors import (
+    IntegrityError, MalformedPayload, TruncatedFrame, UnknownMessageType, UnsupportedFeature,
+    UnsupportedVersion)
+from rescuemesh.protocol.messages import Confirm, Heartbeat, Data, SegmentAck, PoseUpdate
 from rescuemesh.protocol.codec import (
     pull_crc,
     pull_header,

@@ -18,29 +18,11 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from rescuemesh.protocol import (
-    BROADCAST,
-    COMMAND_TYPES,
-    Confirm,
-    Data,
-    DataKind,
-    EncodeError,
-    Endpoint,
-    EndpointConfig,
-    ForwardMsg,
-    FrameFlags,
-    Header,
-    Heartbeat,
-    HeartbeatReceived,
-    MalformedPayload,
-    MessageType,
-    Reason,
-    ResultCode,
-    SegmentAck,
-    UnknownMessageType,
-    decode_frame,
-    decode_inner,
-    encode_frame,
-)
+    BROADCAST, DataKind, EncodeError, Endpoint, EndpointConfig, ForwardMsg, HeartbeatReceived, MessageType,
+    Reason, ResultCode, decode_frame, encode_frame)
+from rescuemesh.protocol.codec import FrameFlags, Header, decode_inner
+from rescuemesh.protocol.errors import MalformedPayload, UnknownMessageType
+from rescuemesh.protocol.messages import COMMAND_TYPES, Confirm, Data, Heartbeat, SegmentAck
 from rescuemesh.protocol.payloads import MAX_SEGMENTS
 from rescuemesh.protocol.reliability import RESULT_TRANSITIONS, ReliabilityConfig
 from rescuemesh.protocol.wire import TAU, period_to_units, position_to_units, radius_to_units, yaw_to_units

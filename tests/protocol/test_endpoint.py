@@ -10,38 +10,11 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from rescuemesh.protocol import (
-    DEFAULT_TTL,
-    MAX_CONTROL_FRAME_BYTES,
-    CommandReceived,
-    Confirm,
-    ConfirmReceived,
-    DataKind,
-    DataReceived,
-    DeliveryFailed,
-    EncodeError,
-    Endpoint,
-    EndpointConfig,
-    Follow,
-    FrameFlags,
-    FrameRejected,
-    Goto,
-    Header,
-    Heartbeat,
-    HeartbeatReceived,
-    MessageType,
-    MoveAround,
-    Pose,
-    PoseUpdate,
-    PoseUpdateReceived,
-    Reason,
-    ReliabilityConfig,
-    ResultCode,
-    Return,
-    SegmentAck,
-    Stop,
-    decode_frame,
-    encode_frame,
-)
+    CommandReceived, ConfirmReceived, DataKind, DataReceived, DeliveryFailed, EncodeError, Endpoint,
+    EndpointConfig, Follow, FrameRejected, Goto, HeartbeatReceived, MessageType, MoveAround, Pose,
+    PoseUpdateReceived, Reason, ReliabilityConfig, ResultCode, Return, Stop, decode_frame, encode_frame)
+from rescuemesh.protocol.codec import DEFAULT_TTL, MAX_CONTROL_FRAME_BYTES, FrameFlags, Header
+from rescuemesh.protocol.messages import Confirm, Heartbeat, PoseUpdate, SegmentAck
 
 from .link import Link, drain
 from .strategies import frames as valid_frames

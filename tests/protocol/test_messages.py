@@ -7,25 +7,10 @@ import dataclasses
 import pytest
 
 from rescuemesh.protocol import (
-    COMMAND_TYPES,
-    CONFIRMABLE_TYPES,
-    Confirm,
-    Follow,
-    ForwardMsg,
-    Goto,
-    Heartbeat,
-    LandOnTop,
-    MessageType,
-    MoveAround,
-    Pose,
-    PoseUpdate,
-    ResultCode,
-    Return,
-    ShowCam,
-    ShowScan,
-    Stop,
-    is_command,
-)
+    Follow, ForwardMsg, Goto, LandOnTop, MessageType, MoveAround, Pose, ResultCode, Return, ShowCam, ShowScan,
+    Stop)
+from rescuemesh.protocol.messages import (
+    COMMAND_TYPES, CONFIRMABLE_TYPES, Confirm, Heartbeat, PoseUpdate, is_command)
 
 P = Pose(0.0, 0.0, 0.0, 0.0)
 COMMANDS = [Follow(P), ShowCam(P, 1.0, 1), ShowScan(P, 1.0, 0), LandOnTop(P), Goto(P), Stop(),

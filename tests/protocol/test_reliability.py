@@ -6,7 +6,9 @@ import math
 
 import pytest
 
-from rescuemesh.protocol import Follow, MessageType, Pose, PoseUpdate, RESULT_TRANSITIONS, ResultCode, Stop
+from rescuemesh.protocol import Follow, MessageType, Pose, ResultCode, Stop
+from rescuemesh.protocol.messages import PoseUpdate
+from rescuemesh.protocol.reliability import RESULT_TRANSITIONS
 from rescuemesh.protocol.reliability import (
     DuplicateCache,
     ReliabilityConfig,

@@ -17,25 +17,10 @@ from hypothesis import example, given
 from hypothesis import strategies as st
 
 from rescuemesh.protocol import (
-    Confirm,
-    EncodeError,
-    Endpoint,
-    Follow,
-    FrameFlags,
-    Header,
-    Heartbeat,
-    MessageType,
-    Pose,
-    ResultCode,
-    Return,
-    SegmentAck,
-    Stop,
-    UnknownMessageType,
-    decode_frame,
-    decode_inner,
-    encode_frame,
-    encode_inner,
-)
+    EncodeError, Endpoint, Follow, MessageType, Pose, ResultCode, Return, Stop, decode_frame, encode_frame)
+from rescuemesh.protocol.codec import FrameFlags, Header, decode_inner, encode_inner
+from rescuemesh.protocol.errors import UnknownMessageType
+from rescuemesh.protocol.messages import Confirm, Heartbeat, SegmentAck
 from rescuemesh.protocol.wire import (
     TAU,
     YAW_UNIT_RAD,

@@ -8,9 +8,11 @@ import pytest
 from team import Team
 
 from rescuemesh.geometry import Pose2D
-from rescuemesh.protocol import (Confirm, ConfirmReceived, Data, DataKind, Endpoint, ForwardMsg, Goto, LandOnTop,
-                                 MessageType, MoveAround, Pose, Reason, ResultCode, Return, ShowCam, ShowScan, Stop,
-                                 encode_inner)
+from rescuemesh.protocol import (
+    ConfirmReceived, DataKind, Endpoint, ForwardMsg, Goto, LandOnTop, MessageType, MoveAround, Pose, Reason,
+    ResultCode, Return, ShowCam, ShowScan, Stop)
+from rescuemesh.protocol.codec import encode_inner
+from rescuemesh.protocol.messages import Confirm, Data
 from rescuemesh.protocol.codec import decode_frame
 from rescuemesh.robot import BrainConfig
 from rescuemesh.robot import events as ev
@@ -408,7 +410,7 @@ def test_show_scan_without_a_laser_is_unsupported_with_the_missing_sensor():
 
 
 def test_robots_announce_their_capabilities_and_peers_can_look_them_up_before_asking():
-    from rescuemesh.protocol import Capability
+    from rescuemesh.protocol.messages import Capability
 
     team = two_robots()
     team.brains["robot_2"].config = replace(team.brains["robot_2"].config, has_camera=False)

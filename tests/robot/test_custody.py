@@ -7,7 +7,9 @@ import pytest
 from team import Team
 
 from rescuemesh.geometry import Pose2D
-from rescuemesh.protocol import DataKind, ForwardMsg, Goto, LandOnTop, MessageType, Pose, Reason, ResultCode, ShowScan, encode_inner
+from rescuemesh.protocol import (
+    DataKind, ForwardMsg, Goto, LandOnTop, MessageType, Pose, Reason, ResultCode, ShowScan)
+from rescuemesh.protocol.codec import encode_inner
 from rescuemesh.robot import BrainConfig
 from rescuemesh.robot import events as ev
 from rescuemesh.robot.custody import HeldReport, ReportCustody

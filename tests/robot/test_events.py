@@ -7,7 +7,8 @@ import typing
 
 import pytest
 
-from rescuemesh.protocol import COMMAND_TYPES, DataKind, MessageType as T, Reason, ResultCode as R
+from rescuemesh.protocol import DataKind, MessageType as T, Reason, ResultCode as R
+from rescuemesh.protocol.messages import COMMAND_TYPES
 from rescuemesh.protocol import events as protocol_events
 from rescuemesh.robot import RobotBrain
 from rescuemesh.robot import events as ev

@@ -2,7 +2,7 @@
 
 import pytest
 
-from rescuemesh.protocol import COMMAND_TYPES
+from rescuemesh.protocol.messages import COMMAND_TYPES
 from rescuemesh.protocol import MessageType as T
 from rescuemesh.protocol import Reason
 from rescuemesh.robot.commands import COMMANDS, priority_of, resources_of

@@ -19,7 +19,8 @@ from pathlib import Path
 
 from rescuemesh.maps import load_map, office_map_path
 from rescuemesh.maps.slam_like import write_slam_like_map
-from rescuemesh.protocol import MAX_CONTROL_FRAME_BYTES, MessageType
+from rescuemesh.protocol import MessageType
+from rescuemesh.protocol.codec import MAX_CONTROL_FRAME_BYTES
 from rescuemesh.protocol.bench import codec_roundtrip_rate
 from rescuemesh.mesh.security import seal_open_rate
 from rescuemesh.protocol.codec import max_frame_bytes

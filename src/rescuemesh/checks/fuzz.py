@@ -14,29 +14,10 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 from rescuemesh.protocol import (
-    BROADCAST,
-    HEADER_BYTES,
-    INTEGRITY_BYTES,
-    PROTOCOL_VERSION,
-    Confirm,
-    Data,
-    DataKind,
-    Follow,
-    ForwardMsg,
-    FrameFlags,
-    Goto,
-    Header,
-    MessageType,
-    MoveAround,
-    Pose,
-    PoseUpdate,
-    ResultCode,
-    Return,
-    SegmentAck,
-    ShowCam,
-    Stop,
-    encode_frame,
-)
+    BROADCAST, DataKind, Follow, ForwardMsg, Goto, MessageType, MoveAround, Pose, ResultCode, Return, ShowCam,
+    Stop, encode_frame)
+from rescuemesh.protocol.codec import HEADER_BYTES, INTEGRITY_BYTES, PROTOCOL_VERSION, FrameFlags, Header
+from rescuemesh.protocol.messages import Confirm, Data, PoseUpdate, SegmentAck
 
 from rescuemesh.mesh.frames import AUTH_BIT, SEG_BIT, TTL_MASK
 from rescuemesh.mesh.frames import seal as with_crc

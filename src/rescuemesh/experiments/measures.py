@@ -13,7 +13,8 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from rescuemesh.protocol import Capability, Reason, ResultCode
+from rescuemesh.protocol import Reason, ResultCode
+from rescuemesh.protocol.messages import Capability
 
 #: A robot counts as stopped below this speed (m/s), as the disconnect scenario's HALTED_SPEED.
 STOPPED_SPEED = 0.02

@@ -21,8 +21,9 @@ from rescuemesh.experiments.mission_spec import (
     OnStep, OnTeamUp, Outage, PathLength, RobotModel, SendCommand, Settle, Step, StepAnswer, StepData, StepDecoded,
     StepFinished, StepResult, TimeTo, Wait)
 from rescuemesh.geometry import Pose2D
-from rescuemesh.protocol import (Follow, ForwardMsg, Goto, LandOnTop, MoveAround, Pose, ResultCode, Return, ShowCam,
-                                 ShowScan, Stop, encode_inner)
+from rescuemesh.protocol import (
+    Follow, ForwardMsg, Goto, LandOnTop, MoveAround, Pose, ResultCode, Return, ShowCam, ShowScan, Stop)
+from rescuemesh.protocol.codec import encode_inner
 from rescuemesh.robot import robot_address
 from rescuemesh.robot.forwarding import FINAL_RESULTS  # results after which a command does no more
 from rescuemesh.robot.records import power_on_s, to_wire_pose

@@ -11,21 +11,12 @@ from dataclasses import dataclass
 from enum import Enum
 from functools import lru_cache
 
-from rescuemesh.protocol import (
-    BROADCAST,
-    FRAME_OVERHEAD_BYTES,
-    INTEGRITY_BYTES,
-    MAX_CONTROL_FRAME_BYTES,
-    MAX_MESSAGE_BYTES,
-    PROTOCOL_VERSION,
-    FrameFlags,
-    IntegrityError,
-    MalformedPayload,
-    MessageType,
-    TruncatedFrame,
-    UnsupportedFeature,
-    UnsupportedVersion,
-)
+from rescuemesh.protocol import BROADCAST, MessageType
+from rescuemesh.protocol.codec import (
+    FRAME_OVERHEAD_BYTES, INTEGRITY_BYTES, MAX_CONTROL_FRAME_BYTES, MAX_MESSAGE_BYTES, PROTOCOL_VERSION,
+    FrameFlags)
+from rescuemesh.protocol.errors import (
+    IntegrityError, MalformedPayload, TruncatedFrame, UnsupportedFeature, UnsupportedVersion)
 from rescuemesh.protocol.codec import TYPE_MASK
 
 #: Largest frame on the air, in bytes: a Bluetooth Mesh network PDU (Mesh Profile 1.0, 3.4.4), i.e.

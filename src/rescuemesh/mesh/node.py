@@ -56,21 +56,10 @@ import math
 from collections import deque
 from dataclasses import dataclass, field
 
-from rescuemesh.protocol import (
-    BROADCAST,
-    MAX_CONTROL_FRAME_BYTES,
-    MAX_SEQ,
-    MAX_TTL,
-    MAX_UNICAST_ADDRESS,
-    PROTOCOL_VERSION,
-    FrameError,
-    FrameFlags,
-    Header,
-    MessageType,
-    SegmentAck,
-    decode_frame,
-    encode_frame,
-)
+from rescuemesh.protocol import BROADCAST, FrameError, MessageType, decode_frame, encode_frame
+from rescuemesh.protocol.codec import (
+    MAX_CONTROL_FRAME_BYTES, MAX_SEQ, MAX_TTL, MAX_UNICAST_ADDRESS, PROTOCOL_VERSION, FrameFlags, Header)
+from rescuemesh.protocol.messages import SegmentAck
 
 from .cache import NetworkCache
 from .config import MeshConfig

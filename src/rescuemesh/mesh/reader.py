@@ -12,7 +12,9 @@ policy, replay decisions, radios or clocks (the node owns those).
 
 from __future__ import annotations
 
-from rescuemesh.protocol import FRAME_OVERHEAD_BYTES, MAX_EPOCH, FrameError, IntegrityError
+from rescuemesh.protocol import FrameError
+from rescuemesh.protocol.codec import FRAME_OVERHEAD_BYTES, MAX_EPOCH
+from rescuemesh.protocol.errors import IntegrityError
 
 from .frames import AUTH_BIT, FrameView, cache_key, read_on_air
 from .stats import MeshStats

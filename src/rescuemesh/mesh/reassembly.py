@@ -9,7 +9,8 @@ from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from rescuemesh.protocol import BROADCAST, MalformedPayload
+from rescuemesh.protocol import BROADCAST
+from rescuemesh.protocol.errors import MalformedPayload
 
 from .config import MeshConfig
 from .frames import FrameView

@@ -43,20 +43,11 @@ from typing import Callable
 from cryptography.exceptions import InvalidTag
 from cryptography.hazmat.primitives.ciphers.aead import AESCCM
 
-from rescuemesh.protocol import (
-    BROADCAST,
-    FRAME_OVERHEAD_BYTES,
-    HEADER_BYTES,
-    INTEGRITY_BYTES,
-    MAX_CONTROL_FRAME_BYTES,
-    MAX_TTL,
-    PROTOCOL_VERSION,
-    FrameFlags,
-    Header,
-    IntegrityError,
-    MessageType,
-    encode_frame,
-)
+from rescuemesh.protocol import BROADCAST, MessageType, encode_frame
+from rescuemesh.protocol.codec import (
+    FRAME_OVERHEAD_BYTES, HEADER_BYTES, INTEGRITY_BYTES, MAX_CONTROL_FRAME_BYTES, MAX_TTL, PROTOCOL_VERSION,
+    FrameFlags, Header)
+from rescuemesh.protocol.errors import IntegrityError
 from rescuemesh.protocol.bench import BENCH_MESSAGES
 from rescuemesh.protocol.codec import TYPE_MASK
 

@@ -8,15 +8,9 @@ from __future__ import annotations
 import zlib
 from dataclasses import dataclass
 
-from rescuemesh.protocol import (
-    FRAME_OVERHEAD_BYTES,
-    HEADER_BYTES,
-    INTEGRITY_BYTES,
-    MAX_ATTEMPT,
-    MAX_MESSAGE_BYTES,
-    MAX_TTL,
-    MalformedPayload,
-)
+from rescuemesh.protocol.codec import (
+    FRAME_OVERHEAD_BYTES, HEADER_BYTES, INTEGRITY_BYTES, MAX_ATTEMPT, MAX_MESSAGE_BYTES, MAX_TTL)
+from rescuemesh.protocol.errors import MalformedPayload
 from rescuemesh.protocol.codec import TYPE_MASK
 
 from .frames import ATTEMPT_SHIFT, MAX_PDU_BYTES, SEG_BIT, TTL_MASK, seal

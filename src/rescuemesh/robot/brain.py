@@ -28,28 +28,10 @@ from rescuemesh.geometry import Pose2D
 from rescuemesh.mesh import NeighbourFound, NeighbourLost, PeerRestarted, TransferComplete, TransferFailed
 from rescuemesh.nav import Costmap, NavigateToPose
 from rescuemesh.protocol import (
-    Capability,
-    CommandReceived,
-    DataKind,
-    Goto,
-    Return,
-    ConfirmReceived,
-    Data,
-    DataReceived,
-    DeliveryFailed,
-    EncodeError,
-    Follow,
-    ForwardMsg,
-    FrameRejected,
-    HeartbeatReceived,
-    MessageType,
-    MoveAround,
-    PoseUpdate,
-    PoseUpdateReceived,
-    Reason,
-    ResultCode,
-    Stop,
-)
+    CommandReceived, DataKind, Goto, Return, ConfirmReceived, DataReceived, DeliveryFailed, EncodeError,
+    Follow, ForwardMsg, FrameRejected, HeartbeatReceived, MessageType, MoveAround, PoseUpdateReceived, Reason,
+    ResultCode, Stop)
+from rescuemesh.protocol.messages import Capability, Data, PoseUpdate
 from rescuemesh.robot.behaviours import (
     Behaviour,
     FollowBehaviour,

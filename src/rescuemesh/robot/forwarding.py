@@ -46,7 +46,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import Enum
 
-from rescuemesh.protocol import BROADCAST, Data, FrameError, Message, Reason, ResultCode, decode_inner, is_command
+from rescuemesh.protocol import BROADCAST, FrameError, Reason, ResultCode
+from rescuemesh.protocol.codec import decode_inner
+from rescuemesh.protocol.messages import Data, Message, is_command
 from rescuemesh.robot.commands import traits
 
 #: Results after which the target does no more with a command (MAVLink: anything but IN_PROGRESS

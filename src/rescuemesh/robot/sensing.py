@@ -9,16 +9,8 @@ import math
 
 from rescuemesh.body import NoRendererError, RobotKind
 from rescuemesh.protocol import (
-    Capability,
-    CommandReceived,
-    DataKind,
-    HeartbeatReceived,
-    LandOnTop,
-    Pose,
-    Reason,
-    ResultCode,
-    ShowCam,
-)
+    CommandReceived, DataKind, HeartbeatReceived, LandOnTop, Pose, Reason, ResultCode, ShowCam)
+from rescuemesh.protocol.messages import Capability
 from rescuemesh.robot.landing import LandOnTopBehaviour
 from rescuemesh.robot import events as ev
 from rescuemesh.robot.commands import priority_of

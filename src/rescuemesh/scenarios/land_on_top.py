@@ -13,7 +13,8 @@ from dataclasses import replace
 
 from rescuemesh.body import FlightPhase, RobotKind
 from rescuemesh.geometry import Pose2D
-from rescuemesh.protocol import Capability, ResultCode
+from rescuemesh.protocol import ResultCode
+from rescuemesh.protocol.messages import Capability
 from rescuemesh.runtime import SimConfig
 from rescuemesh.scenarios.base import CommandRequest, Scenario, Verdict, no_collisions, settled
 

@@ -18,20 +18,9 @@ from dataclasses import dataclass
 from rescuemesh.mesh import Transmission
 from rescuemesh.mesh.keys import hkdf_sha256
 from rescuemesh.mesh.security import FrameSealer
-from rescuemesh.protocol import (
-    BROADCAST,
-    CONFIRMABLE_TYPES,
-    PROTOCOL_VERSION,
-    Confirm,
-    Follow,
-    FrameFlags,
-    Header,
-    MessageType,
-    Pose,
-    ResultCode,
-    Stop,
-    encode_frame,
-)
+from rescuemesh.protocol import BROADCAST, Follow, MessageType, Pose, ResultCode, Stop, encode_frame
+from rescuemesh.protocol.codec import PROTOCOL_VERSION, FrameFlags, Header
+from rescuemesh.protocol.messages import CONFIRMABLE_TYPES, Confirm
 from rescuemesh.robot import events as ev
 from rescuemesh.scenarios.base import Verdict
 from rescuemesh.scenarios.follow import FollowScenario

@@ -30,8 +30,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from rescuemesh.geometry import Pose2D, yaw_to_quaternion
-from rescuemesh.protocol import (CommandReceived, Confirm, ConfirmReceived, LandOnTop, MessageType, Pose,
-                                 PoseUpdate, PoseUpdateReceived, Reason, ShowCam, ShowScan)
+from rescuemesh.protocol import (
+    CommandReceived, ConfirmReceived, LandOnTop, MessageType, Pose, PoseUpdateReceived, Reason, ShowCam,
+    ShowScan)
+from rescuemesh.protocol.messages import Confirm, PoseUpdate
 from rescuemesh.protocol.messages import COMMAND_TYPES, PROGRESS_UNKNOWN
 from rescuemesh.robot import robot_address, robot_name
 from rescuemesh.robot.records import to_wire_pose

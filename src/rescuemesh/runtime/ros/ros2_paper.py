@@ -17,7 +17,8 @@ import threading
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from rescuemesh.protocol import Confirm, MessageType, PoseUpdate, ResultCode
+from rescuemesh.protocol import MessageType, ResultCode
+from rescuemesh.protocol.messages import Confirm, PoseUpdate
 from rescuemesh.runtime.ros.ros1_paper import (FRAME_REQUIRED, LEADER_POSE, RECEIVED, REQUESTS, TYPE_NAME, EndpointTap,
                                            Request, RequestError, Traffic, _name, fill_command, fill_pose,
                                            parse_request)
