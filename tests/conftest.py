@@ -11,6 +11,13 @@ settings.load_profile("ci" if os.environ.get("CI") else "dev")
 
 
 import pytest  # noqa: E402
+import signal  # noqa: E402
+
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    # A test run started in the background by a script (`make test &`) inherits SIGINT ignored, and so
+    # would every process a test starts: the Ctrl-C tests would see their Ctrl-C ignored (this used to
+    # fail three of them in such a run). A handler, unlike SIG_IGN, is not inherited across exec.
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @pytest.fixture(autouse=True, scope="session")
