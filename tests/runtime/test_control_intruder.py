@@ -67,7 +67,10 @@ def test_with_an_intruder_answering_for_every_robot_the_real_robots_still_run_th
         assert world.returncode == 0, err
         assert (tmp_path / "out" / "result.json").exists()
         assert not marker.exists()
-        assert "refused a control message" in err and "Traceback" not in err  # every intruder reply dropped
+        # No intruder reply was taken for a robot's. Whether one was read and refused (a log line) or left
+        # unread once the real robot's had been taken is a race between two processes: this used to require
+        # the refusal line and failed 1 run in 2 after the world began sending a frame to every robot at once.
+        assert "Traceback" not in err
     finally:
         _end(world, intruder, *robots)
 
