@@ -60,7 +60,7 @@ FRAME_REQUIRED = frozenset({MessageType.GOTO, MessageType.SHOW_CAM, MessageType.
 
 def msg_package_dir() -> Path:
     """The catkin-style package with Command.msg (package.xml beside it)."""
-    return Path(__file__).resolve().parent.parent / "data" / "ros1" / MSG_PACKAGE
+    return Path(__file__).resolve().parents[2] / "data" / "ros1" / MSG_PACKAGE  # rescuemesh/data
 
 
 def _dependency_dirs() -> dict[str, list[str]]:

@@ -32,7 +32,7 @@ class Ros2MsgsUnavailable(ImportError):
 
 def package_dir() -> Path:
     """The ament package with Command.msg and SendCommand.action."""
-    return Path(__file__).resolve().parent.parent / "data" / "ros2" / MSG_PACKAGE
+    return Path(__file__).resolve().parents[2] / "data" / "ros2" / MSG_PACKAGE  # rescuemesh/data
 
 
 def import_messages():
