@@ -24,7 +24,7 @@ from rescuemesh.mesh.keys import write_team_key
 from rescuemesh.mesh.security import FrameSealer
 from rescuemesh.protocol import FrameError
 from rescuemesh.runtime.onboard.boot_counter import BootCounter
-from rescuemesh.checks.link_bench import free_port
+from rescuemesh.runtime.onboard.link_bench import free_port
 from rescuemesh.transport.zenoh_link import air_key, link_secret, open_session
 
 TEAM = f"sec{os.getpid()}"

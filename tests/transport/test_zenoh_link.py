@@ -14,7 +14,7 @@ import zenoh
 
 from rescuemesh.geometry import Pose2D
 from rescuemesh.runtime.config import SimConfig
-from rescuemesh.checks.link_bench import free_port, zenoh_confirm_rtt
+from rescuemesh.runtime.onboard.link_bench import free_port, zenoh_confirm_rtt
 from rescuemesh.runtime.onboard.linked_robot import build_robot
 from rescuemesh.runtime.onboard.realtime import RealtimeLoop, monotonic_from_zero
 from rescuemesh.transport.zenoh_link import (

@@ -151,8 +151,8 @@ def _process_convoy_figures(seed: int) -> dict:
 
 def _link_figures() -> dict:
     """A command's round trip to its Confirm between two robot processes over Zenoh on loopback,
-    protocol, security and brains included, beside raw Zenoh ping-pong (checks/link_bench.py)."""
-    from rescuemesh.checks.link_bench import zenoh_confirm_rtt
+    protocol, security and brains included, beside raw Zenoh ping-pong (runtime/onboard/link_bench.py)."""
+    from rescuemesh.runtime.onboard.link_bench import zenoh_confirm_rtt
 
     figures = zenoh_confirm_rtt(1000)
     protocol, raw = figures["protocol"], figures["raw"]

@@ -107,7 +107,7 @@ def _raw_rtt(samples: int, team: str, deadline: float, python: str) -> dict:
     import zenoh
 
     port = free_port()
-    args = [python, "-m", "rescuemesh.checks.link_bench", "--echo", "--team", team,
+    args = [python, "-m", "rescuemesh.runtime.onboard.link_bench", "--echo", "--team", team,
             "--listen", f"tcp/127.0.0.1:{port}", "--duration", f"{max(1.0, deadline - time.monotonic()):.1f}"]
     with _Helper(args) as helper:
         if not helper.listening(port, min(deadline, time.monotonic() + START_TIMEOUT_S)):
@@ -241,9 +241,9 @@ def _echo(team: str, listen: str, duration_s: float) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """`python -m rescuemesh.checks.link_bench [--samples N]` prints the figures as JSON; `--echo`
+    """`python -m rescuemesh.runtime.onboard.link_bench [--samples N]` prints the figures as JSON; `--echo`
     is the raw ping-pong's other end (used by the bench itself)."""
-    p = argparse.ArgumentParser(prog="python -m rescuemesh.checks.link_bench")
+    p = argparse.ArgumentParser(prog="python -m rescuemesh.runtime.onboard.link_bench")
     p.add_argument("--echo", action="store_true")
     p.add_argument("--team", default="bench")
     p.add_argument("--listen", default="tcp/127.0.0.1:7447")
