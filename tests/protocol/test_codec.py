@@ -438,3 +438,17 @@ def test_pose_decode_is_exact_for_decoded_values(pose):
     again = bytearray()
     push_pose(again, decoded)
     assert again == buf
+
+
+@pytest.mark.parametrize("bits", range(0x20))
+def test_a_decoded_heartbeat_carries_the_capability_flags_it_announced(bits):
+    # read through a table of the 32 valid sets since issue 21: a wrong entry would hand a robot
+    # another robot's abilities (LandOnTop on a robot without a pad)
+    from rescuemesh.protocol.messages import Capability
+
+    header = hdr(MessageType.HEARTBEAT, dst=255)
+    _, message = decode_frame(encode_frame(header, Heartbeat(0, 3, 7, bits)))
+    assert isinstance(message.capabilities, Capability)
+    assert message.capabilities == Capability(bits)
+    assert [flag for flag in Capability if flag and flag in message.capabilities] == \
+        [flag for flag in Capability if flag & bits]

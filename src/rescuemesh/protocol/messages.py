@@ -89,6 +89,10 @@ class Capability(IntFlag):
 
 #: Every Capability bit (a Heartbeat with others set is malformed).
 ALL_CAPABILITIES = 0x1F
+#: Every valid set of Capability bits, by value: reading a Heartbeat looks its bits up here
+#: (Capability(bits) builds a Flag member anew each call, a few us: every robot of a team of 30 reads
+#: 29 Heartbeats a period).
+CAPABILITY_SETS: tuple[Capability, ...] = tuple(Capability(bits) for bits in range(ALL_CAPABILITIES + 1))
 
 
 class DataKind(IntEnum):

@@ -12,7 +12,7 @@ from .errors import EncodeError, MalformedPayload, UnknownMessageType
 from .messages import (
     ALL_CAPABILITIES,
     COMMAND_TYPES,
-    Capability,
+    CAPABILITY_SETS,
     CONFIRMABLE_TYPES,
     PROGRESS_UNKNOWN,
     Confirm,
@@ -204,7 +204,7 @@ def _pull_heartbeat(data: bytes, offset: int, end: int) -> Heartbeat:
         raise MalformedPayload(f"Heartbeat active_command {active}")
     if init_ttl > MAX_TTL:
         raise MalformedPayload(f"Heartbeat init_ttl {init_ttl}")
-    return Heartbeat(active, init_ttl, epoch, Capability(capabilities))
+    return Heartbeat(active, init_ttl, epoch, CAPABILITY_SETS[capabilities])
 
 
 def _push_segment_ack(buf: bytearray, msg: SegmentAck) -> None:

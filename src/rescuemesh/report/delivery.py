@@ -9,10 +9,12 @@ at its destination. Must not know: frame contents, how the medium decided a rece
 from __future__ import annotations
 
 from collections import defaultdict
+from functools import cache
 
 from rescuemesh.protocol import BROADCAST, MessageType
 
 
+@cache
 def _type_name(msg_type: int) -> str:
     try:
         return MessageType(msg_type).name

@@ -10,7 +10,7 @@ import math
 from rescuemesh.body import NoRendererError, RobotKind
 from rescuemesh.protocol import (
     CommandReceived, DataKind, HeartbeatReceived, LandOnTop, Pose, Reason, ResultCode, ShowCam)
-from rescuemesh.protocol.messages import Capability
+from rescuemesh.protocol.messages import CAPABILITY_SETS, Capability
 from rescuemesh.robot.landing import LandOnTopBehaviour
 from rescuemesh.robot import events as ev
 from rescuemesh.robot.commands import priority_of
@@ -53,7 +53,7 @@ class SensorCommands:
         return self.send(peer, LandOnTop(Pose(pose.x, pose.y, top, pose.yaw)), now)
 
     def _on_heartbeat(self, event: HeartbeatReceived, now: float) -> None:
-        self.peer_capabilities[event.src] = Capability(event.capabilities)
+        self.peer_capabilities[event.src] = CAPABILITY_SETS[event.capabilities]  # decoded: within ALL_CAPABILITIES
 
     def _on_show(self, event: CommandReceived, now: float) -> None:
         command = event.command
