@@ -252,3 +252,30 @@ def test_a_timer_moved_later_by_a_dropped_frame_still_fires_at_its_new_time():
     sender.outbox.append(Tx(b"a" * 20, 1, 2))
     medium.pump(2.0)  # the frame arrives at ~1 ms and moves the timer; no flush in between
     assert len(dropper.heard) == 1 and dropper.fired == [0.8]
+
+
+class TimerCountingStack(FakeStack):
+    """Counts the medium's get_timer() asks."""
+
+    asks: int = 0
+
+    def get_timer(self):
+        self.asks += 1
+        return super().get_timer()
+
+
+def test_a_timer_entry_superseded_by_an_earlier_one_fires_once_and_is_not_asked_again():
+    # this used to ask the stack again when the superseded entry (0.9) came due: three asks in four
+    # in the convoy of 30 were such entries
+    medium = SimMedium(DiscChannel(), 7, timing=NO_JITTER)
+    stack = TimerCountingStack(1)
+    medium.attach(1, stack, lambda: (0, 0))
+    stack.timer = 0.9
+    medium.pump(0.0)  # read: an entry at 0.9
+    stack.timer = 0.5
+    medium.flush(0.0)  # read again: an entry at 0.5 supersedes the one at 0.9
+    asks = stack.asks
+    medium.pump(2.0)
+    assert stack.fired == [0.5]
+    # the pump's flush, then at 0.5 whether it is due and the timer after handling it; none at 0.9
+    assert stack.asks == asks + 3

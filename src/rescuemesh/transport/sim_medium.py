@@ -459,9 +459,14 @@ class SimMedium:
         self._arm_timer(radio, radio.stack.get_timer())
 
     def _arm_timer(self, radio: _Radio, timer: float | None) -> None:
-        if timer is not None and self._timer_at.get(radio.address) != timer:
-            self._timer_at[radio.address] = timer
-            self._push(max(timer, self._now), _Event.TIMER, radio)
+        """Push the stack's timer on the heap unless that very entry is pending. `_timer_at` holds,
+        per radio, the time of the one entry that counts (the latest pushed); any other entry of that
+        radio on the heap is superseded (_fire_timer)."""
+        if timer is not None:
+            at = max(timer, self._now)
+            if self._timer_at.get(radio.address) != at:
+                self._timer_at[radio.address] = at
+                self._push(at, _Event.TIMER, radio)
 
     def _schedule_start(self, radio: _Radio, now: float) -> None:
         timing = self.timing
@@ -471,13 +476,18 @@ class SimMedium:
         self._push(start, _Event.TX_START, radio)
 
     def _fire_timer(self, radio: _Radio, at: float) -> None:
+        if self._timer_at.get(radio.address) != at:
+            # superseded: this radio's entry that counts is a later one, or none is armed. The
+            # stack's timer is never earlier than the medium last read it (it moves earlier only in
+            # calls after which the medium collects it), so it is not due now: no need to ask. In the
+            # convoy of 30, three timer entries in four are superseded (relays scheduled, then
+            # suppressed or sent; resends confirmed), and each was a get_timer() call before.
+            return
+        del self._timer_at[radio.address]
         timer = radio.stack.get_timer()
         if timer is None or timer > at:  # stale: the stack's timer moved (later) since this was pushed
-            if self._timer_at.get(radio.address) == at:
-                del self._timer_at[radio.address]
             self._arm_timer(radio, timer)  # a stack that dropped a frame was not asked: ask now
             return
-        self._timer_at.pop(radio.address, None)
         radio.stack.handle_timer(at)
         self._collect(radio, at)
 
