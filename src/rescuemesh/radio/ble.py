@@ -51,7 +51,9 @@ from rescuemesh.radio.per import crc_covered_bits, packet_error_rate, packet_err
 from rescuemesh.radio.shadowing import ShadowField
 from rescuemesh.radio.streams import UniformStream, uniforms
 from rescuemesh.radio.materials import C_M_S
-from rescuemesh.radio.walls import wall_loss_cells, wall_loss_fresnel, wall_loss_fresnel_many, wall_loss_many
+from rescuemesh.jit import compiled
+from rescuemesh.radio.walls import (_fresnel_wall_loss, _occupied_sat, _padded, _padded_codes, _wall_loss_on_line,
+                                    wall_loss_cells, wall_loss_fresnel, wall_loss_fresnel_many, wall_loss_many)
 
 #: Position quantum in m when the channel has no map grid.
 DEFAULT_QUANTUM_M = 0.05
@@ -336,6 +338,49 @@ class BleChannel(ChannelModel):
             return self._mean_power_cells(bi, bj, ai, aj)
         return self._mean_power_cells(ai, aj, bi, bj)
 
+    def mean_rx_power_row(self, tx_xy: Point, rx_xy: np.ndarray) -> np.ndarray:
+        """`mean_rx_power_dbm(tx_xy, p)` for each p of `rx_xy` (shape (N, 2)), the same numbers, in one
+        compiled call (`_mean_power_row`) instead of one Python call per receiver: the same cells in
+        the same order (the lower cell first), the same shadow values (read per cell from the cache
+        `_unit_at` fills), the same arithmetic. The 3D distance comes from `math.hypot`, as the
+        scalar's does: numba has no three-argument hypot, and a square root of the sum of squares
+        differs from it in the last bit. The pair cache is neither read nor filled (a moving team
+        hardly meets a pair twice: see docs/radio.md)."""
+        if type(self).mean_rx_power_dbm is not BleChannel.mean_rx_power_dbm \
+                or type(self)._budget_terms is not BleChannel._budget_terms:
+            return super().mean_rx_power_row(tx_xy, rx_xy)  # a subclass's own model: ask it per pair
+        pts = np.asarray(rx_xy, dtype=float).reshape(-1, 2)
+        q, ox, oy = self._quantum, self._ox, self._oy
+        ai = math.floor((tx_xy[0] - ox) / q)
+        aj = math.floor((tx_xy[1] - oy) / q)
+        bi = np.floor((pts[:, 0] - ox) / q).astype(np.int64)
+        bj = np.floor((pts[:, 1] - oy) / q).astype(np.int64)
+        swap = (bi < ai) | ((bi == ai) & (bj < aj))  # (bi, bj) < (ai, aj): that cell comes first
+        lo_i, lo_j = np.where(swap, bi, ai), np.where(swap, bj, aj)
+        hi_i, hi_j = np.where(swap, ai, bi), np.where(swap, aj, bj)
+        pax, pay = ox + (lo_i + 0.5) * q, oy + (lo_j + 0.5) * q
+        pbx, pby = ox + (hi_i + 0.5) * q, oy + (hi_j + 0.5) * q
+        hypot, dh = math.hypot, self._dh
+        d = np.fromiter(map(hypot, (pbx - pax).tolist(), (pby - pay).tolist(), (dh,) * len(pts)), float,
+                        len(pts))
+        unit_a, unit_b = np.zeros(len(pts)), np.zeros(len(pts))
+        if self.shadow.sigma_db != 0.0:
+            units, unit_at, centre = self._unit_of_cell, self._unit_at, self._centre
+            for arr, ii, jj in ((unit_a, lo_i, lo_j), (unit_b, hi_i, hi_j)):
+                arr[:] = [units.get(c) or unit_at(c[0], c[1], centre(*c)) for c in zip(ii.tolist(), jj.tolist())]
+        grid, p = self.grid, self.params
+        if grid is None:
+            mode, padded, sat, codes = _NO_WALLS, _EMPTY_PADDED, _EMPTY_SAT, _EMPTY_CODES
+        else:
+            mode = _FRESNEL if self._rays > 1 else (_LINE_TAGGED if grid.materials is not None else _LINE)
+            padded, sat, codes = _padded(grid), _occupied_sat(grid), _padded_codes(grid)
+        out = np.empty(len(pts))
+        _mean_power_row(mode, padded, sat, codes, self._loss_by_code, ox, oy, q, pax, pay, pbx, pby,
+                        lo_i, lo_j, hi_i, hi_j, d, unit_a, unit_b, self._wavelength, self._dh, self._rays,
+                        p.min_distance_m, self._bp, p.reference_loss_db, self._near10, self._far10,
+                        self.shadow.sigma_db, p.tx_power_dbm, p.tx_antenna_gain_dbi, p.rx_antenna_gain_dbi, out)
+        return out
+
     def mean_rx_power_map(self, tx_xy: Point, rx_xy: np.ndarray) -> np.ndarray:
         """Mean power from tx to each point (shape (N, 2)); vectorised, same model as above.
 
@@ -438,3 +483,35 @@ class BleChannel(ChannelModel):
 
     def __repr__(self) -> str:
         return f"BleChannel(grid={'yes' if self.grid is not None else 'None'}, seed={self.seed}, params={self.params})"
+
+
+# How `_mean_power_row` prices the walls (BleChannel._budget_terms's branches).
+_NO_WALLS, _LINE, _LINE_TAGGED, _FRESNEL = 0, 1, 2, 3
+_EMPTY_PADDED = np.ones((3, 3), dtype=bool)
+_EMPTY_SAT = np.zeros((4, 4), dtype=np.int64)
+_EMPTY_CODES = np.zeros((3, 3), dtype=np.uint8)
+
+
+@compiled("void(i8, b1[:, ::1], i8[:, ::1], u1[:, ::1], f8[::1], f8, f8, f8, f8[::1], f8[::1], f8[::1], f8[::1], "
+          "i8[::1], i8[::1], i8[::1], i8[::1], f8[::1], f8[::1], f8[::1], f8, f8, i8, f8, f8, f8, f8, f8, f8, f8, "
+          "f8, f8, f8[::1])")
+def _mean_power_row(mode, padded, sat, codes, loss_by_code, ox, oy, res, pax, pay, pbx, pby, ai, aj, bi, bj, d,
+                    unit_a, unit_b, wavelength, dh, rays, min_d, bp, ref_loss, near10, far10, sigma, tx_dbm, g_tx,
+                    g_rx, out):  # pragma: no cover - compiled
+    """BleChannel._budget_terms's mean power for each pair i of cells (ai, aj) <= (bi, bj) with centres
+    (pax, pay), (pbx, pby), 3D distance d and shadow field units unit_a, unit_b: the same operations
+    in the same order, so the same numbers."""
+    sqrt2 = math.sqrt(2.0)
+    for i in range(out.shape[0]):
+        dd = max(d[i], min_d)
+        path_loss = ref_loss + near10 * math.log10(min(dd, bp)) + (far10 * math.log10(dd / bp) if dd > bp else 0.0)
+        if mode == _NO_WALLS:
+            wall_loss = 0.0
+        elif mode == _FRESNEL:
+            wall_loss = _fresnel_wall_loss(padded, sat, codes, loss_by_code, ox, oy, res, pax[i], pay[i],
+                                           pbx[i], pby[i], wavelength, dh, rays)[1]
+        else:  # walls.wall_loss_cells(grid, aj, ai, bj, bi, loss_by_code): rows first
+            walls, line_loss = _wall_loss_on_line(padded, codes, loss_by_code, aj[i], ai[i], bj[i], bi[i])
+            wall_loss = line_loss if mode == _LINE_TAGGED else walls * loss_by_code[0]
+        shadow = sigma * (unit_a[i] + unit_b[i]) / sqrt2 if sigma != 0.0 else 0.0
+        out[i] = tx_dbm + g_tx + g_rx - path_loss - wall_loss - shadow
