@@ -251,6 +251,7 @@ class BleChannel(ChannelModel):
         self._mean_power_cells = lru_cache(maxsize=cache_pairs)(self._compute_mean_power_cells)
         self._cache_pairs = cache_pairs
         self._unit_of_cell: dict[tuple[int, int], float] = {}
+        self._row_args: tuple | None = None
         self._tables: dict[int, np.ndarray] = {}
         self._bits: dict[int, int] = {}
 
@@ -353,33 +354,40 @@ class BleChannel(ChannelModel):
         q, ox, oy = self._quantum, self._ox, self._oy
         ai = math.floor((tx_xy[0] - ox) / q)
         aj = math.floor((tx_xy[1] - oy) / q)
-        bi = np.floor((pts[:, 0] - ox) / q).astype(np.int64)
-        bj = np.floor((pts[:, 1] - oy) / q).astype(np.int64)
-        swap = (bi < ai) | ((bi == ai) & (bj < aj))  # (bi, bj) < (ai, aj): that cell comes first
-        lo_i, lo_j = np.where(swap, bi, ai), np.where(swap, bj, aj)
-        hi_i, hi_j = np.where(swap, ai, bi), np.where(swap, aj, bj)
-        pax, pay = ox + (lo_i + 0.5) * q, oy + (lo_j + 0.5) * q
-        pbx, pby = ox + (hi_i + 0.5) * q, oy + (hi_j + 0.5) * q
-        hypot, dh = math.hypot, self._dh
-        d = np.fromiter(map(hypot, (pbx - pax).tolist(), (pby - pay).tolist(), (dh,) * len(pts)), float,
-                        len(pts))
-        unit_a, unit_b = np.zeros(len(pts)), np.zeros(len(pts))
+        tcx, tcy = self._centre(ai, aj)
+        cells = np.floor((pts - (ox, oy)) / q)
+        centres = (ox, oy) + (cells + 0.5) * q
+        cells = cells.astype(np.int64)
+        # |pb - pa| either way round: math.hypot takes the coordinates' magnitudes
+        d = np.fromiter(map(math.hypot, (centres[:, 0] - tcx).tolist(), (centres[:, 1] - tcy).tolist(),
+                            (self._dh,) * len(pts)), float, len(pts))
         if self.shadow.sigma_db != 0.0:
-            units, unit_at, centre = self._unit_of_cell, self._unit_at, self._centre
-            for arr, ii, jj in ((unit_a, lo_i, lo_j), (unit_b, hi_i, hi_j)):
-                arr[:] = [units.get(c) or unit_at(c[0], c[1], centre(*c)) for c in zip(ii.tolist(), jj.tolist())]
+            units, unit_at = self._unit_of_cell, self._unit_at
+            unit_tx = unit_at(ai, aj, (tcx, tcy))
+            keys = list(map(tuple, cells.tolist()))
+            unit_rx = np.array([units.get(c) for c in keys], dtype=float)
+            for k in np.flatnonzero(np.isnan(unit_rx)).tolist():  # cells not met before
+                unit_rx[k] = unit_at(keys[k][0], keys[k][1], (centres[k, 0], centres[k, 1]))
+        else:
+            unit_tx, unit_rx = 0.0, np.zeros(len(pts))
+        if self._row_args is None:
+            self._row_args = self._row_arguments()
+        out = np.empty(len(pts))
+        _mean_power_row(*self._row_args, ai, aj, tcx, tcy, unit_tx, cells, centres, d, unit_rx, out)
+        return out
+
+    def _row_arguments(self) -> tuple:
+        """The map and the parameters `_mean_power_row` reads, packed once per channel."""
         grid, p = self.grid, self.params
         if grid is None:
             mode, padded, sat, codes = _NO_WALLS, _EMPTY_PADDED, _EMPTY_SAT, _EMPTY_CODES
         else:
             mode = _FRESNEL if self._rays > 1 else (_LINE_TAGGED if grid.materials is not None else _LINE)
             padded, sat, codes = _padded(grid), _occupied_sat(grid), _padded_codes(grid)
-        out = np.empty(len(pts))
-        _mean_power_row(mode, padded, sat, codes, self._loss_by_code, ox, oy, q, pax, pay, pbx, pby,
-                        lo_i, lo_j, hi_i, hi_j, d, unit_a, unit_b, self._wavelength, self._dh, self._rays,
-                        p.min_distance_m, self._bp, p.reference_loss_db, self._near10, self._far10,
-                        self.shadow.sigma_db, p.tx_power_dbm, p.tx_antenna_gain_dbi, p.rx_antenna_gain_dbi, out)
-        return out
+        numbers = np.array([self._ox, self._oy, self._quantum, self._wavelength, self._dh, p.min_distance_m,
+                            self._bp, p.reference_loss_db, self._near10, self._far10, self.shadow.sigma_db,
+                            p.tx_power_dbm, p.tx_antenna_gain_dbi, p.rx_antenna_gain_dbi])
+        return mode, self._rays, padded, sat, codes, np.ascontiguousarray(self._loss_by_code, dtype=float), numbers
 
     def mean_rx_power_map(self, tx_xy: Point, rx_xy: np.ndarray) -> np.ndarray:
         """Mean power from tx to each point (shape (N, 2)); vectorised, same model as above.
@@ -492,26 +500,38 @@ _EMPTY_SAT = np.zeros((4, 4), dtype=np.int64)
 _EMPTY_CODES = np.zeros((3, 3), dtype=np.uint8)
 
 
-@compiled("void(i8, b1[:, ::1], i8[:, ::1], u1[:, ::1], f8[::1], f8, f8, f8, f8[::1], f8[::1], f8[::1], f8[::1], "
-          "i8[::1], i8[::1], i8[::1], i8[::1], f8[::1], f8[::1], f8[::1], f8, f8, i8, f8, f8, f8, f8, f8, f8, f8, "
-          "f8, f8, f8[::1])")
-def _mean_power_row(mode, padded, sat, codes, loss_by_code, ox, oy, res, pax, pay, pbx, pby, ai, aj, bi, bj, d,
-                    unit_a, unit_b, wavelength, dh, rays, min_d, bp, ref_loss, near10, far10, sigma, tx_dbm, g_tx,
-                    g_rx, out):  # pragma: no cover - compiled
-    """BleChannel._budget_terms's mean power for each pair i of cells (ai, aj) <= (bi, bj) with centres
-    (pax, pay), (pbx, pby), 3D distance d and shadow field units unit_a, unit_b: the same operations
-    in the same order, so the same numbers."""
+@compiled("void(i8, i8, b1[:, ::1], i8[:, ::1], u1[:, ::1], f8[::1], f8[::1], i8, i8, f8, f8, f8, i8[:, ::1], "
+          "f8[:, ::1], f8[::1], f8[::1], f8[::1])")
+def _mean_power_row(mode, rays, padded, sat, codes, loss_by_code, numbers, ai, aj, tcx, tcy, unit_tx, cells, centres,
+                    d, unit_rx, out):  # pragma: no cover - compiled
+    """BleChannel._budget_terms's mean power from the cell (ai, aj) (centre (tcx, tcy), shadow field
+    unit_tx) to each cell i of `cells` (centre centres[i], 3D distance d[i], unit unit_rx[i]), the two
+    taken lower cell first: the same operations in the same order, so the same numbers. `numbers`:
+    BleChannel._row_arguments's."""
+    ox, oy, res, wavelength, dh, min_d, bp, ref_loss, near10, far10, sigma, tx_dbm, g_tx, g_rx = (
+        numbers[0], numbers[1], numbers[2], numbers[3], numbers[4], numbers[5], numbers[6], numbers[7], numbers[8],
+        numbers[9], numbers[10], numbers[11], numbers[12], numbers[13])
     sqrt2 = math.sqrt(2.0)
     for i in range(out.shape[0]):
+        bi = cells[i, 0]
+        bj = cells[i, 1]
+        if bi < ai or (bi == ai and bj < aj):  # (bi, bj) first
+            li, lj, hi, hj = bi, bj, ai, aj
+            pax, pay, pbx, pby = centres[i, 0], centres[i, 1], tcx, tcy
+            ua, ub = unit_rx[i], unit_tx
+        else:
+            li, lj, hi, hj = ai, aj, bi, bj
+            pax, pay, pbx, pby = tcx, tcy, centres[i, 0], centres[i, 1]
+            ua, ub = unit_tx, unit_rx[i]
         dd = max(d[i], min_d)
         path_loss = ref_loss + near10 * math.log10(min(dd, bp)) + (far10 * math.log10(dd / bp) if dd > bp else 0.0)
         if mode == _NO_WALLS:
             wall_loss = 0.0
         elif mode == _FRESNEL:
-            wall_loss = _fresnel_wall_loss(padded, sat, codes, loss_by_code, ox, oy, res, pax[i], pay[i],
-                                           pbx[i], pby[i], wavelength, dh, rays)[1]
+            wall_loss = _fresnel_wall_loss(padded, sat, codes, loss_by_code, ox, oy, res, pax, pay, pbx, pby,
+                                           wavelength, dh, rays)[1]
         else:  # walls.wall_loss_cells(grid, aj, ai, bj, bi, loss_by_code): rows first
-            walls, line_loss = _wall_loss_on_line(padded, codes, loss_by_code, aj[i], ai[i], bj[i], bi[i])
+            walls, line_loss = _wall_loss_on_line(padded, codes, loss_by_code, lj, li, hj, hi)
             wall_loss = line_loss if mode == _LINE_TAGGED else walls * loss_by_code[0]
-        shadow = sigma * (unit_a[i] + unit_b[i]) / sqrt2 if sigma != 0.0 else 0.0
+        shadow = sigma * (ua + ub) / sqrt2 if sigma != 0.0 else 0.0
         out[i] = tx_dbm + g_tx + g_rx - path_loss - wall_loss - shadow
