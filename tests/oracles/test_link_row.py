@@ -102,3 +102,40 @@ def test_a_subclass_with_its_own_mean_power_is_asked_per_pair():
     rx = np.array([[1.0, 2.0], [4.0, 0.5]])
     assert np.array_equal(Louder(None).mean_rx_power_row((0.0, 0.0), rx),
                           BleChannel(None).mean_rx_power_row((0.0, 0.0), rx) + 10.0)
+
+
+def test_the_medium_holds_the_scalar_mean_power_of_every_pair_as_radios_move():
+    # SimMedium._mean_row asks the channel for a row of the pairs whose cell changed; this used to be
+    # one mean_rx_power_dbm call per pair, whose numbers the matrix must still hold
+    from rescuemesh.transport.sim_medium import SimMedium
+
+    class Quiet:
+        def receive(self, data, now, *, rssi_dbm=None, relay_delay_s=0.0):
+            pass
+
+        def transmissions(self, now):
+            return []
+
+        def get_timer(self):
+            return None
+
+        def handle_timer(self, now):
+            pass
+
+    grid = load_map(office_map_path()).grid
+    channel = BleChannel(grid, seed=3)
+    rng = np.random.default_rng(15)
+    where = {address: tuple(p) for address, p in enumerate(_places(grid, rng, 12).tolist(), start=1)}
+    medium = SimMedium(channel, 7)
+    for address in where:
+        medium.attach(address, Quiet(), lambda a=address: where[a])
+    for step in range(4):
+        medium._positions_fresh = False
+        for radio in medium._order_of:
+            row = medium._mean_row(radio)
+            me = where[radio.address]
+            for other in medium._order_of:
+                if other is not radio:
+                    assert row[other.index] == channel.mean_rx_power_dbm(me, where[other.address]), (step, radio.address)
+        for address in list(where)[step::3]:  # some radios move to other cells
+            where[address] = (where[address][0] + 0.3, where[address][1] - 0.2)
