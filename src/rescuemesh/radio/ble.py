@@ -252,6 +252,7 @@ class BleChannel(ChannelModel):
         self._cache_pairs = cache_pairs
         self._unit_of_cell: dict[tuple[int, int], float] = {}
         self._row_args: tuple | None = None
+        self._origin = np.array([self._ox, self._oy])
         self._tables: dict[int, np.ndarray] = {}
         self._bits: dict[int, int] = {}
 
@@ -355,19 +356,22 @@ class BleChannel(ChannelModel):
         ai = math.floor((tx_xy[0] - ox) / q)
         aj = math.floor((tx_xy[1] - oy) / q)
         tcx, tcy = self._centre(ai, aj)
-        cells = np.floor((pts - (ox, oy)) / q)
-        centres = (ox, oy) + (cells + 0.5) * q
+        origin = self._origin
+        cells = np.floor((pts - origin) / q)
+        centres = origin + (cells + 0.5) * q
         cells = cells.astype(np.int64)
         # |pb - pa| either way round: math.hypot takes the coordinates' magnitudes
         d = np.fromiter(map(math.hypot, (centres[:, 0] - tcx).tolist(), (centres[:, 1] - tcy).tolist(),
                             (self._dh,) * len(pts)), float, len(pts))
         if self.shadow.sigma_db != 0.0:
-            units, unit_at = self._unit_of_cell, self._unit_at
-            unit_tx = unit_at(ai, aj, (tcx, tcy))
+            unit_tx = self._unit_at(ai, aj, (tcx, tcy))
             keys = list(map(tuple, cells.tolist()))
-            unit_rx = np.array([units.get(c) for c in keys], dtype=float)
-            for k in np.flatnonzero(np.isnan(unit_rx)).tolist():  # cells not met before
-                unit_rx[k] = unit_at(keys[k][0], keys[k][1], (centres[k, 0], centres[k, 1]))
+            get = self._unit_of_cell.get
+            units = [get(c) for c in keys]
+            if None in units:  # cells not met before
+                unit_at, centre = self._unit_at, self._centre
+                units = [unit_at(c[0], c[1], centre(*c)) if u is None else u for u, c in zip(units, keys)]
+            unit_rx = np.array(units)
         else:
             unit_tx, unit_rx = 0.0, np.zeros(len(pts))
         if self._row_args is None:
