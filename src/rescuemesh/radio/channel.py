@@ -130,6 +130,14 @@ class ChannelModel(abc.ABC):
         pts = np.asarray(rx_xy, dtype=float).reshape(-1, 2)
         return np.array([self.delivery_probability(tx_xy, (x, y), frame_bytes) for x, y in pts])
 
+    def mean_rx_power_row(self, tx_xy: Point, rx_xy: np.ndarray) -> np.ndarray:
+        """`mean_rx_power_dbm(tx_xy, p)` for each p of `rx_xy` (shape (N, 2)): exactly its numbers,
+        where `mean_rx_power_map` may differ in detail (the simulated medium's per-transmission row).
+        This default asks the scalar once per receiver; override when a faster way gives the same."""
+        power = self.mean_rx_power_dbm
+        return np.array([power(tx_xy, (x, y)) for x, y in np.asarray(rx_xy, dtype=float).reshape(-1, 2).tolist()],
+                        dtype=float)
+
     def describe(self) -> str:
         """One line naming the model and its main settings (plot titles, logs)."""
         items = ", ".join(f"{k} {v}" for k, v in self.settings().items() if k != "name")

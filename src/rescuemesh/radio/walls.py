@@ -64,6 +64,23 @@ def _padded(grid: OccupancyGrid) -> np.ndarray:
     return entry[1]
 
 
+def _occupied_sat(grid: OccupancyGrid) -> np.ndarray:
+    """The summed-area table of `_padded(grid)`: sat[r, c] = occupied cells in padded[:r, :c] (one
+    row and column of zeros in front), so any box's count is four reads (`_box_free`)."""
+    entry = _SAT.get(id(grid))
+    if entry is None or entry[0] is not grid:
+        if len(_SAT) >= 8:
+            _SAT.clear()
+        padded = _padded(grid)
+        sat = np.zeros((padded.shape[0] + 1, padded.shape[1] + 1), dtype=np.int64)
+        np.cumsum(np.cumsum(padded, axis=0, dtype=np.int64), axis=1, out=sat[1:, 1:])
+        entry = _SAT[id(grid)] = (grid, sat)
+    return entry[1]
+
+
+_SAT: dict[int, tuple[OccupancyGrid, np.ndarray]] = {}
+
+
 def _occupied_cells(grid: OccupancyGrid, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
     """Occupancy of cells (row, col) of any shape; off the grid is occupied (the padded border)."""
     n_rows, n_cols = grid.occupied.shape
@@ -188,14 +205,97 @@ def _wall_loss_on_line(padded, codes, loss_by_code, r0, c0, r1, c1):  # pragma: 
     return walls, loss + (run if in_run else 0.0)
 
 
+#: Cells of a segment walked per summed-area look-up by `_wall_loss_skipping`.
+SKIP_BLOCK_CELLS = 8
+
+
+@numba.njit("b1(i8[:, ::1], i8, i8, i8, i8, i8, i8)", cache=True, nogil=True, inline="always")
+def _box_free(sat, n_rows, n_cols, ra, ca, rb, cb):  # pragma: no cover - compiled
+    """Whether the box of cells spanned by cells (ra, ca) and (rb, cb) (grid indices, clamped onto
+    the padded border as the walks clamp them) holds no occupied cell: four summed-area reads."""
+    lo_r = min(max(min(ra, rb), -1), n_rows) + 1
+    hi_r = min(max(max(ra, rb), -1), n_rows) + 2
+    lo_c = min(max(min(ca, cb), -1), n_cols) + 1
+    hi_c = min(max(max(ca, cb), -1), n_cols) + 2
+    return sat[hi_r, hi_c] - sat[lo_r, hi_c] - sat[hi_r, lo_c] + sat[lo_r, lo_c] == 0
+
+
+@numba.njit("Tuple((i8, f8))(b1[:, ::1], i8[:, ::1], u1[:, ::1], f8[::1], i8, i8, i8, i8)", cache=True,
+            nogil=True)
+def _wall_loss_skipping(padded, sat, codes, loss_by_code, r0, c0, r1, c1):  # pragma: no cover - compiled
+    """`_wall_loss_on_line`'s (walls, loss), the same numbers, skipping free stretches: a segment
+    whose bounding box holds no occupied cell is (0, 0.0) in O(1); otherwise it is walked in blocks
+    of SKIP_BLOCK_CELLS cells, and a block whose box (spanned by its first and last cell: Bresenham
+    cells are monotone in both axes) is free only closes the wall being crossed, as its first free
+    cell would. `sat` is `_occupied_sat` of the grid whose padded occupancy is `padded`."""
+    n_rows = padded.shape[0] - 2
+    n_cols = padded.shape[1] - 2
+    if _box_free(sat, n_rows, n_cols, r0, c0, r1, c1):
+        return 0, 0.0
+    d_r = r1 - r0
+    d_c = c1 - c0
+    sign_r = (d_r > 0) - (d_r < 0)
+    sign_c = (d_c > 0) - (d_c < 0)
+    col_major = abs(d_c) >= abs(d_r)
+    n = abs(d_c) if col_major else abs(d_r)
+    minor_span = abs(d_r) if col_major else abs(d_c)
+    steps = max(n, 1)
+    walls = 0
+    loss = 0.0
+    run = 0.0
+    in_run = False
+    before = False
+    first = 0
+    while first <= n:
+        last = min(first + SKIP_BLOCK_CELLS - 1, n)
+        minor_a = (2 * first * minor_span + steps) // (2 * steps)
+        minor_b = (2 * last * minor_span + steps) // (2 * steps)
+        if col_major:
+            free = _box_free(sat, n_rows, n_cols, r0 + sign_r * minor_a, c0 + sign_c * first,
+                             r0 + sign_r * minor_b, c0 + sign_c * last)
+        else:
+            free = _box_free(sat, n_rows, n_cols, r0 + sign_r * first, c0 + sign_c * minor_a,
+                             r0 + sign_r * last, c0 + sign_c * minor_b)
+        if free:
+            if in_run:
+                loss += run
+                in_run = False
+            before = False
+            first = last + 1
+            continue
+        for i in range(first, last + 1):
+            minor = (2 * i * minor_span + steps) // (2 * steps)
+            if col_major:
+                r = r0 + sign_r * minor
+                c = c0 + sign_c * i
+            else:
+                r = r0 + sign_r * i
+                c = c0 + sign_c * minor
+            pr = min(max(r, -1), n_rows) + 1
+            pc = min(max(c, -1), n_cols) + 1
+            occupied = padded[pr, pc]
+            if occupied and not before and i > 0:
+                walls += 1
+                run = loss_by_code[codes[pr, pc]]
+                in_run = True
+            elif occupied and in_run:
+                run = max(run, loss_by_code[codes[pr, pc]])
+            elif not occupied and in_run:
+                loss += run
+                in_run = False
+            before = occupied
+        first = last + 1
+    return walls, loss + (run if in_run else 0.0)
+
+
 #: Straight segments each off-centre ray of the Fresnel bundle is drawn with (it follows the zone's
 #: elliptical edge through SEGMENTS - 1 points; 8 and 16 give wall losses within 0.1 dB on average).
 FRESNEL_SEGMENTS = 8
 
 
-@numba.njit("Tuple((i8, f8))(b1[:, ::1], u1[:, ::1], f8[::1], f8, f8, f8, f8, f8, f8, f8, f8, f8, i8)",
-            cache=True, nogil=True)
-def _fresnel_wall_loss(padded, codes, loss_by_code, ox, oy, res, ax, ay, bx, by, wavelength, dh,
+@numba.njit("Tuple((i8, f8))(b1[:, ::1], i8[:, ::1], u1[:, ::1], f8[::1], f8, f8, f8, f8, f8, f8, f8, f8, f8, "
+            "i8)", cache=True, nogil=True)
+def _fresnel_wall_loss(padded, sat, codes, loss_by_code, ox, oy, res, ax, ay, bx, by, wavelength, dh,
                        rays):  # pragma: no cover - compiled
     """(walls on the straight line a -> b, wall loss averaged in power over the first Fresnel zone).
 
@@ -206,12 +306,16 @@ def _fresnel_wall_loss(padded, codes, loss_by_code, ox, oy, res, ax, ay, bx, by,
     prices them (a wall at a joint counts once: a segment that ends inside it counts it, the next,
     starting inside it, does not). The wall loss is -10 log10 of the mean of 10^(-L_k / 10). The
     off-centre rays are drawn from the end with the lower (column, row), so a pair gives the same
-    bundle both ways round; s = 0 is the straight line itself, from `a`."""
+    bundle both ways round; s = 0 is the straight line itself, from `a`.
+
+    Free space costs O(1) (`sat`: `_occupied_sat`, the same numbers): each segment is priced by
+    `_wall_loss_skipping`, and when the box around the whole bundle (the ends' box widened by the
+    zone's largest radius and one cell for rounding) holds no occupied cell, no ray is walked."""
     r0 = int(math.floor((ay - oy) / res))
     c0 = int(math.floor((ax - ox) / res))
     r1 = int(math.floor((by - oy) / res))
     c1 = int(math.floor((bx - ox) / res))
-    walls, central = _wall_loss_on_line(padded, codes, loss_by_code, r0, c0, r1, c1)
+    walls, central = _wall_loss_skipping(padded, sat, codes, loss_by_code, r0, c0, r1, c1)
     dx = bx - ax
     dy = by - ay
     d2 = math.sqrt(dx * dx + dy * dy)
@@ -224,11 +328,21 @@ def _fresnel_wall_loss(padded, codes, loss_by_code, ox, oy, res, ax, ay, bx, by,
     d3 = math.sqrt(dx * dx + dy * dy + dh * dh)
     nx = -dy / d2
     ny = dx / d2
+    reach = math.sqrt(wavelength * d3 * 0.25) + res  # every ray's points lie within this of the ends' box
+    n_rows = padded.shape[0] - 2
+    n_cols = padded.shape[1] - 2
+    bundle_free = _box_free(sat, n_rows, n_cols,
+                            int(math.floor((min(ay, by) - reach - oy) / res)),
+                            int(math.floor((min(ax, bx) - reach - ox) / res)),
+                            int(math.floor((max(ay, by) + reach - oy) / res)),
+                            int(math.floor((max(ax, bx) + reach - ox) / res)))
     total = 0.0
     for k in range(rays):
         s = -1.0 + 2.0 * k / (rays - 1)
         if 2 * k == rays - 1:
             loss = central
+        elif bundle_free:
+            loss = 0.0
         else:
             loss = 0.0
             pr = r0
@@ -242,19 +356,19 @@ def _fresnel_wall_loss(padded, codes, loss_by_code, ox, oy, res, ax, ay, bx, by,
                     off = s * math.sqrt(wavelength * d3 * t * (1.0 - t))
                     r = int(math.floor((ay + dy * t + ny * off - oy) / res))
                     c = int(math.floor((ax + dx * t + nx * off - ox) / res))
-                loss += _wall_loss_on_line(padded, codes, loss_by_code, pr, pc, r, c)[1]
+                loss += _wall_loss_skipping(padded, sat, codes, loss_by_code, pr, pc, r, c)[1]
                 pr = r
                 pc = c
         total += 10.0 ** (-loss / 10.0)
     return walls, -10.0 * math.log10(total / rays)
 
 
-@numba.njit("void(b1[:, ::1], u1[:, ::1], f8[::1], f8, f8, f8, f8, f8, f8[:, ::1], f8, f8, i8, i8[::1], f8[::1])",
-            cache=True, nogil=True)
-def _fresnel_wall_loss_many(padded, codes, loss_by_code, ox, oy, res, ax, ay, points, wavelength, dh, rays,
+@numba.njit("void(b1[:, ::1], i8[:, ::1], u1[:, ::1], f8[::1], f8, f8, f8, f8, f8, f8[:, ::1], f8, f8, i8, i8[::1], "
+            "f8[::1])", cache=True, nogil=True)
+def _fresnel_wall_loss_many(padded, sat, codes, loss_by_code, ox, oy, res, ax, ay, points, wavelength, dh, rays,
                             walls_out, loss_out):  # pragma: no cover - compiled
     for i in range(points.shape[0]):
-        walls_out[i], loss_out[i] = _fresnel_wall_loss(padded, codes, loss_by_code, ox, oy, res, ax, ay,
+        walls_out[i], loss_out[i] = _fresnel_wall_loss(padded, sat, codes, loss_by_code, ox, oy, res, ax, ay,
                                                        points[i, 0], points[i, 1], wavelength, dh, rays)
 
 
@@ -262,7 +376,8 @@ def wall_loss_fresnel(grid: OccupancyGrid, a: tuple[float, float], b: tuple[floa
                       loss_by_code: np.ndarray, wavelength_m: float, dh_m: float, rays: int) -> tuple[int, float]:
     """(walls on the straight line a -> b, wall loss in dB averaged in power over the first Fresnel
     zone's horizontal width, `rays` rays; module docstring). rays = 1: `wall_loss_cells`'s loss."""
-    return _fresnel_wall_loss(_padded(grid), _padded_codes(grid), np.asarray(loss_by_code, dtype=float),
+    return _fresnel_wall_loss(_padded(grid), _occupied_sat(grid), _padded_codes(grid),
+                              np.asarray(loss_by_code, dtype=float),
                               float(grid.origin_x), float(grid.origin_y), float(grid.resolution),
                               float(a[0]), float(a[1]), float(b[0]), float(b[1]), float(wavelength_m),
                               float(dh_m), int(rays))
@@ -275,7 +390,8 @@ def wall_loss_fresnel_many(grid: OccupancyGrid, a: tuple[float, float], points: 
     pts = np.ascontiguousarray(np.asarray(points, dtype=float).reshape(-1, 2))
     walls = np.zeros(len(pts), dtype=np.int64)
     loss = np.zeros(len(pts))
-    _fresnel_wall_loss_many(_padded(grid), _padded_codes(grid), np.asarray(loss_by_code, dtype=float),
+    _fresnel_wall_loss_many(_padded(grid), _occupied_sat(grid), _padded_codes(grid),
+                            np.asarray(loss_by_code, dtype=float),
                             float(grid.origin_x), float(grid.origin_y), float(grid.resolution),
                             float(a[0]), float(a[1]), pts, float(wavelength_m), float(dh_m), int(rays),
                             walls, loss)

@@ -426,9 +426,8 @@ class SimMedium:
         if not valid.all():
             missing = np.flatnonzero(~valid & self._enabled)
             if len(missing):
-                power, places = self.channel.mean_rx_power_dbm, self._places
-                tx = places[s]
-                values = [power(tx, places[r]) for r in missing.tolist()]
+                places = self._places
+                values = self.channel.mean_rx_power_row(places[s], np.array([places[r] for r in missing.tolist()]))
                 self._mean[s, missing] = values
                 valid[missing] = True
                 if self.law.symmetric:
