@@ -13,6 +13,7 @@ import pytest
 from rescuemesh.geometry import Pose2D
 from rescuemesh.maps import load_map, office_map_path
 from rescuemesh.protocol import MessageType, ResultCode
+from rescuemesh.protocol.messages import Capability
 from rescuemesh.robot.events import CommandSent
 from rescuemesh.robot.records import BrainLog, OutgoingCommand
 from rescuemesh.runtime.processes import control_messages as msg
@@ -162,6 +163,7 @@ def test_the_brains_status_reaches_the_stand_in_as_it_changes():
     class Brain:  # what StatusTracker reads of a RobotBrain
         running, finished, outgoing, log, commands_failed = None, [], {}, BrainLog(), 0
         received_data = []
+        peer_capabilities = {}
 
     brain = Brain()
     tracker = StatusTracker(brain)
@@ -177,6 +179,13 @@ def test_the_brains_status_reaches_the_stand_in_as_it_changes():
     assert stand_in.outgoing[1].result == ResultCode.ACCEPTED and stand_in.log == brain.log
     assert stand_in.running is None and stand_in.behaviour == "idle"
     assert tracker.delta() == msg.StatusDelta()  # nothing changed: nothing sent
+    # a scenario waits on the peers' Heartbeats (relay: robot_3 heard by robot_1); the stand-in had no
+    # peer_capabilities, and `relay --processes` died with an AttributeError
+    assert stand_in.peer_capabilities == {} and stand_in.capabilities_of(3) is None
+    brain.peer_capabilities = {3: Capability.LASER | Capability.RELAY}
+    stand_in.update(decode(encode(tracker.delta())))
+    assert stand_in.capabilities_of(3) == Capability.LASER | Capability.RELAY
+    assert tracker.delta() == msg.StatusDelta()
     with pytest.raises(AttributeError):
         stand_in.stack  # noqa: B018 - nothing else of the robot can be read
 

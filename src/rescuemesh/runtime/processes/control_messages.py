@@ -21,6 +21,7 @@ from rescuemesh.mesh.neighbours import NeighbourInfo
 from rescuemesh.mesh.node import Transmission
 from rescuemesh.mesh.stats import MeshStats
 from rescuemesh.protocol import DataKind, Follow, Goto, LandOnTop, MoveAround, Return, ShowCam, ShowScan, Stop
+from rescuemesh.protocol.messages import Capability
 from rescuemesh.protocol.endpoint import EndpointStats
 from rescuemesh.robot.behaviours import Waypoint
 from rescuemesh.robot.events import BrainEvent
@@ -168,7 +169,8 @@ class RunningView:
 class StatusDelta:
     """What changed in the brain's status since the robot's previous reply: the running behaviour
     (when `running_changed`), behaviours finished, commands sent or updated, log lines and bulk data
-    received since, and the count of commands given up."""
+    received since, the count of commands given up, and what the peers announced in their Heartbeats
+    (the whole table, when it changed)."""
 
     running_changed: bool = False
     running: RunningView | None = None
@@ -177,6 +179,7 @@ class StatusDelta:
     log: list[BrainEvent] = field(default_factory=list)
     received_data: list[tuple[float, int, DataKind, int, bytes, int]] | None = None
     commands_failed: int = 0
+    peer_capabilities: dict[int, Capability] | None = None  # every peer's, when any changed
 
 
 @dataclass(frozen=True)

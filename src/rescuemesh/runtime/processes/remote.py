@@ -93,6 +93,7 @@ class RemoteBrain:
         self.outgoing: dict = {}
         self.received_data: deque = deque(maxlen=64)
         self.commands_failed = 0
+        self.peer_capabilities: dict = {}  # address -> Capability, as RobotBrain.peer_capabilities
 
     def update(self, status: msg.StatusDelta) -> None:
         if status.running_changed:
@@ -104,6 +105,12 @@ class RemoteBrain:
         if status.received_data is not None:
             self.received_data = deque(status.received_data, maxlen=64)
         self.commands_failed = status.commands_failed
+        if status.peer_capabilities is not None:
+            self.peer_capabilities = dict(status.peer_capabilities)
+
+    def capabilities_of(self, peer: int):
+        """What `peer` announced it can do (None before its first Heartbeat), as RobotBrain's."""
+        return self.peer_capabilities.get(peer)
 
     @property
     def running(self) -> RunningStandIn | None:

@@ -84,7 +84,8 @@ class RemoteBody(Body):
 
 class StatusTracker:
     """What changed in a brain's status since the last delta: the running behaviour, behaviours
-    finished, commands sent or updated, log lines, bulk data received, commands given up."""
+    finished, commands sent or updated, log lines, bulk data received, commands given up, the peers'
+    announced capabilities."""
 
     def __init__(self, brain) -> None:
         self.brain = brain
@@ -92,6 +93,7 @@ class StatusTracker:
         self._finished = self._log = self._failed = 0
         self._outgoing: dict[int, tuple] = {}
         self._received = (0, None)
+        self._capabilities: dict = {}
 
     def delta(self) -> msg.StatusDelta:
         brain = self.brain
@@ -122,7 +124,10 @@ class StatusTracker:
             self._received = key
             received_data = list(received)
         failed = brain.commands_failed
-        return msg.StatusDelta(running_changed, view, list(finished), outgoing, new, received_data, failed)
+        capabilities = None
+        if brain.peer_capabilities != self._capabilities:
+            self._capabilities = capabilities = dict(brain.peer_capabilities)
+        return msg.StatusDelta(running_changed, view, list(finished), outgoing, new, received_data, failed, capabilities)
 
 
 def _waypoints(behaviour, name: str):
