@@ -164,6 +164,21 @@ class Costmap:
         cell's kernel: the same answer as the stamped array, without stamping the map (compiled)."""
         xs = np.ascontiguousarray(xs, dtype=float)
         ys = np.ascontiguousarray(ys, dtype=float)
+        return kernels.any_lethal(xs, ys, *self._lethal_args(clear_center, clear_radius))
+
+    def any_lethal_along(self, points: np.ndarray, cum: np.ndarray, s0: float, s1: float, step: float, *,
+                         clear_center: tuple[float, float] | None = None, clear_radius: float = 0.0) -> bool:
+        """`any_lethal` of the polyline `points` ((N, 2) m, arc lengths `cum` m at its vertices)
+        sampled every `step` m from arc length `s0` to before `s1` (`np.arange`, then `np.interp`,
+        which clamps to the ends): one compiled call."""
+        pts = np.ascontiguousarray(points, dtype=float).reshape(-1, 2)
+        cum = np.ascontiguousarray(cum, dtype=float)
+        return kernels.path_any_lethal(pts, cum, float(s0), float(s1), float(step),
+                                       *self._lethal_args(clear_center, clear_radius))
+
+    def _lethal_args(self, clear_center: tuple[float, float] | None, clear_radius: float) -> tuple:
+        """The arguments of kernels.any_lethal after the points: the grid, the lethal cells, the
+        obstacle cells when not stamped, the lethal disc and the cleared circle."""
         cx, cy = clear_center if clear_center is not None and clear_radius > 0.0 else (0.0, 0.0)
         radius = clear_radius if clear_center is not None else 0.0
         h, w = self.shape
@@ -171,8 +186,8 @@ class Costmap:
             lethal, (orow, ocol) = self._lethal.reshape(-1), _NO_OBSTACLES
         else:
             lethal, (orow, ocol) = self._static_lethal.reshape(-1), self._obstacle_rc
-        return kernels.any_lethal(xs, ys, self.grid.origin_x, self.grid.origin_y, self.resolution, h, w, lethal,
-                                  orow, ocol, self._lethal_disc, cx, cy, radius)
+        return (self.grid.origin_x, self.grid.origin_y, self.resolution, h, w, lethal, orow, ocol, self._lethal_disc,
+                cx, cy, radius)
 
     def clearance_at(self, x: float, y: float) -> float:
         """Distance in m from (x, y) to the nearest static map obstacle (0 outside the grid)."""
@@ -252,6 +267,15 @@ class Costmap:
         if self._window is None or self._window[0] != key:
             self._window = (key, self._stamped(*key))
         return self._window[1]
+
+    def known_costs(self) -> tuple[np.ndarray, int, int]:
+        """(costs, row, col of its first cell): the whole `cost` array when it is built, else the
+        last window `cost_in` stamped, else the whole array (stamped now). Compiled readers
+        (nav/kernels.py) take cells inside it from it and the whole array for any other."""
+        if self._cost is None and self._window is not None:
+            (r0, _, c0, _), part = self._window
+            return part, r0, c0
+        return self.cost, 0, 0
 
     def _stamp_obstacles(self) -> None:
         """The full cost array: the static layer with every obstacle cell's inflation kernel stamped."""

@@ -362,10 +362,9 @@ class NavigateToPose:
         s0 = g.s_progress + self.params.controller.footprint_radius + 0.1
         if s0 >= g.path.length_m:
             return False
-        s = np.arange(s0, g.path.length_m, cm.resolution)  # np.interp clamps to the ends as point_at does
-        xs = np.interp(s, g.path.cum, g.path.points[:, 0])
-        ys = np.interp(s, g.path.cum, g.path.points[:, 1])
-        return cm.any_lethal(xs, ys, clear_center=(g.pose.x, g.pose.y), clear_radius=g.clear_radius)
+        # samples every cell along the path (clamped to its ends as point_at is), tested in one compiled call
+        return cm.any_lethal_along(g.path.points, g.path.cum, s0, g.path.length_m, cm.resolution,
+                                   clear_center=(g.pose.x, g.pose.y), clear_radius=g.clear_radius)
 
     def _replan(self, g: _Goal, now: float, pose: Pose2D) -> bool:
         """Plan from `pose`; False (goal ABORTED "no path") when there is none even without scan obstacles."""
