@@ -143,11 +143,11 @@ def interp(x, xp, fp):
     out = np.empty(len(x))
     for i in range(len(x)):
         v = x[i]
+        if n == 1:  # (numpy's answer for nan too)
+            out[i] = fp[0]
+            continue
         if math.isnan(v):
             out[i] = v
-            continue
-        if n == 1:
-            out[i] = fp[0]
             continue
         if v < xp[0]:
             out[i] = fp[0]
