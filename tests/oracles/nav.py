@@ -188,3 +188,26 @@ def shortcut(costmap, points, *, max_segment_m=2.0, cost_tolerance=0.05):
         i = j
         kept.append(i)
     return points[kept]
+
+
+def stamped(static_cost, r0, r1, c0, c1, obstacle_rc, kernel, reach):
+    """Costmap._stamped: static_cost[r0:r1, c0:c1] with every obstacle cell's inflation kernel
+    (offsets and costs) stamped, the highest cost winning (stamped whole into a padded copy)."""
+    cost = static_cost[r0:r1, c0:c1]
+    if len(obstacle_rc[0]) == 0:
+        return cost.copy()
+    dr, dc, kval = kernel
+    n = reach
+    orow, ocol = obstacle_rc
+    near = np.flatnonzero((orow >= r0 - n) & (orow < r1 + n) & (ocol >= c0 - n) & (ocol < c1 + n))
+    if len(near) == 0:
+        return cost.copy()
+    hh, ww = cost.shape
+    pad = 2 * n
+    wide = ww + 2 * pad
+    padded = np.zeros((hh + 2 * pad, wide), dtype=cost.dtype)
+    padded[pad : pad + hh, pad : pad + ww] = cost
+    centres = (orow[near] - (r0 - pad)) * wide + (ocol[near] - (c0 - pad))
+    cells = (centres[:, None] + (dr * wide + dc)[None, :]).reshape(-1)
+    np.maximum.at(padded.reshape(-1), cells, np.broadcast_to(kval, (len(near), len(kval))).reshape(-1))
+    return padded[pad : pad + hh, pad : pad + ww].copy()

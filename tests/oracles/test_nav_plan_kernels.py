@@ -129,6 +129,31 @@ def test_the_coarse_grid_is_the_oracles_on_random_windows(office_costmap):
     _check_coarse(random_costs[3:30, 5:40], 2, (0, 14, 0, 18))  # a view, as cost_in may give
 
 
+# -- stamping scan obstacles --------------------------------------------------------------------------
+
+
+def _check_stamped(cm, rng, windows=20):
+    h, w = cm.shape
+    for _ in range(windows):
+        r0, c0 = int(rng.integers(0, h)), int(rng.integers(0, w))
+        r1, c1 = int(rng.integers(r0 + 1, h + 1)), int(rng.integers(c0 + 1, w + 1))
+        got = cm._stamped(r0, r1, c0, c1)
+        want = ref.stamped(cm.static_cost, r0, r1, c0, c1, cm._obstacle_rc, cm._kernel, cm._kernel_reach)
+        assert got.dtype == want.dtype and got.flags.c_contiguous
+        np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(cm._stamped(0, h, 0, w), ref.stamped(cm.static_cost, 0, h, 0, w, cm._obstacle_rc,
+                                                                     cm._kernel, cm._kernel_reach))
+
+
+def test_stamping_is_the_oracles_on_random_obstacles_and_windows(office_costmap):
+    rng = np.random.default_rng(36)
+    g = office_costmap.grid
+    size = np.array(office_costmap.shape[::-1]) * office_costmap.resolution
+    for trial in range(20):
+        points = np.array([g.origin_x, g.origin_y]) + rng.uniform(-0.1, 1.1, (int(rng.integers(0, 300)), 2)) * size
+        _check_stamped(office_costmap.with_obstacles(points, 0.0), rng)
+
+
 # -- shortcutting ------------------------------------------------------------------------------------
 
 
@@ -213,11 +238,14 @@ def recorded():
     return rec
 
 
-def test_the_kernels_are_the_oracles_on_inputs_recorded_from_a_follow_run(recorded):
+def test_the_kernels_are_the_oracles_on_inputs_recorded_from_a_follow_run(recorded, office_costmap):
     assert len(recorded["scans"]) == 100 and len(recorded["coarse"]) >= 20
     assert len(recorded["paths"]) >= 100 and len(recorded["shortcuts"]) >= 20
+    rng = np.random.default_rng(37)
     for scan in recorded["scans"]:
         _check_scan(scan)
+    for scan in recorded["scans"][::10]:
+        _check_stamped(office_costmap.with_obstacles(scan.points_in_map(), 0.0), rng, 5)
     for cm, points, s0, centre, radius in recorded["paths"]:
         _check_path(cm, points, s0, centre, radius)
     for cost, k, window in recorded["coarse"]:

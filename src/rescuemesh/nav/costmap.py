@@ -285,31 +285,13 @@ class Costmap:
 
     def _stamped(self, r0: int, r1: int, c0: int, c1: int) -> np.ndarray:
         """A copy of `static_cost[r0:r1, c0:c1]` (within the grid) with the inflation kernel of
-        every obstacle cell stamped where it reaches (the highest cost wins).
-
-        The kernels are stamped whole into a copy padded by twice the kernel's reach on every
-        side (an obstacle cell reaching the window lies within one reach of it, its kernel within
-        two), then the window is cut out: no kernel cell needs a bounds test, and each window
-        cell gets the maximum of the same values as when the cells off the window are left out."""
+        every obstacle cell stamped where it reaches (the highest cost wins; compiled)."""
         cost = self.static_cost[r0:r1, c0:c1]
         if len(self._obstacle_cells) == 0:
             return cost.copy()
         dr, dc, kval = self._kernel
-        n = self._kernel_reach
         orow, ocol = self._obstacle_rc
-        near = np.flatnonzero((orow >= r0 - n) & (orow < r1 + n) & (ocol >= c0 - n) & (ocol < c1 + n))
-        if len(near) == 0:
-            return cost.copy()
-        hh, ww = cost.shape
-        pad = 2 * n
-        wide = ww + 2 * pad
-        padded = np.zeros((hh + 2 * pad, wide), dtype=cost.dtype)
-        padded[pad : pad + hh, pad : pad + ww] = cost
-        centres = (orow[near] - (r0 - pad)) * wide + (ocol[near] - (c0 - pad))
-        cells = (centres[:, None] + (dr * wide + dc)[None, :]).reshape(-1)
-        # flat operands: ufunc.at takes a slow path when it has to broadcast them
-        np.maximum.at(padded.reshape(-1), cells, np.broadcast_to(kval, (len(near), len(kval))).reshape(-1))
-        return padded[pad : pad + hh, pad : pad + ww].copy()
+        return kernels.stamped(cost, r0, c0, orow, ocol, dr, dc, kval, self._kernel_reach)
 
     def _make_kernel(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Cell offsets (drow, dcol) and costs of one obstacle cell, inflated: the stamp for scan points."""

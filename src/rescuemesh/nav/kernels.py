@@ -306,3 +306,24 @@ def shortcut_kept(points, cost, r0, c0, rows, cols, origin_x, origin_y, resoluti
         kept[m] = i
         m += 1
     return kept[:m].copy()
+
+
+@compiled("f4[:, ::1](f4[:, :], i8, i8, i8[::1], i8[::1], i8[::1], i8[::1], f4[::1], i8)")
+def stamped(cost, r0, c0, obstacle_rows, obstacle_cols, kernel_rows, kernel_cols, kernel_costs, reach):
+    """A copy of `cost` (the window of the grid from cell (r0, c0)) where each cell holds the
+    highest of its cost and the costs `kernel_costs` that the inflation kernel (cell offsets
+    kernel_rows, kernel_cols, at most `reach` cells) of every obstacle cell puts on it."""
+    h, w = cost.shape
+    out = np.empty((h, w), dtype=np.float32)
+    for r in range(h):
+        for c in range(w):
+            out[r, c] = cost[r, c]
+    for j in range(len(obstacle_rows)):
+        orow, ocol = obstacle_rows[j] - r0, obstacle_cols[j] - c0
+        if not (-reach <= orow < h + reach and -reach <= ocol < w + reach):
+            continue
+        for i in range(len(kernel_costs)):
+            r, c = orow + kernel_rows[i], ocol + kernel_cols[i]
+            if 0 <= r < h and 0 <= c < w and kernel_costs[i] > out[r, c]:
+                out[r, c] = kernel_costs[i]
+    return out
