@@ -211,3 +211,17 @@ def stamped(static_cost, r0, r1, c0, c1, obstacle_rc, kernel, reach):
     cells = (centres[:, None] + (dr * wide + dc)[None, :]).reshape(-1)
     np.maximum.at(padded.reshape(-1), cells, np.broadcast_to(kval, (len(near), len(kval))).reshape(-1))
     return padded[pad : pad + hh, pad : pad + ww].copy()
+
+
+def segment_samples_between(a, b, samples):
+    """NavigateToPose._extended's samples: `samples` points evenly from a to b (np.linspace)."""
+    t = np.linspace(0.0, 1.0, samples)
+    return a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])
+
+
+def cumulative_lengths(points):
+    """path.cumulative_lengths: arc length at each vertex of the (N, 2) polyline, from 0."""
+    if len(points) < 2:
+        return np.zeros(len(points))
+    seg = np.hypot(*np.diff(points, axis=0).T)
+    return np.concatenate(([0.0], np.cumsum(seg)))

@@ -16,6 +16,7 @@ from rescuemesh.geometry import Pose2D
 from rescuemesh.maps import load_map, office_map_path
 from rescuemesh.nav import kernels
 from rescuemesh.nav.costmap import Costmap
+from rescuemesh.nav.path import cumulative_lengths
 from rescuemesh.nav.planner import MCPPlanner, shortcut
 
 
@@ -68,6 +69,55 @@ def test_the_path_check_is_sampling_then_the_lethal_check_on_random_paths(office
         centre = tuple(points[-1]) if trial % 4 else None
         blocked += _check_path(cm, points, float(rng.uniform(0, 0.5)), centre, float(rng.choice([0.0, 0.5])))
     assert 30 < blocked < 270  # both answers were checked
+
+
+def _check_segment(cm, a, b, samples):
+    xs, ys = ref.segment_samples_between(a, b, samples)
+    got = cm.segment_any_lethal(a, b, samples)
+    assert got == cm.any_lethal(xs, ys)
+    return got
+
+
+def test_the_straight_extension_check_is_linspace_then_the_lethal_check(office_costmap):
+    rng = np.random.default_rng(38)
+    g = office_costmap.grid
+    lo = np.array([g.origin_x, g.origin_y])
+    size = np.array(office_costmap.shape[::-1]) * office_costmap.resolution
+    cm = office_costmap.with_obstacles(lo + rng.uniform(0, 1, (200, 2)) * size, 0.0)
+    blocked = 0
+    for trial in range(400):
+        a = tuple(lo + rng.uniform(0.05, 0.95, 2) * size)
+        b = tuple(np.array(a) + rng.normal(0, 0.7, 2))
+        samples = max(2, math.ceil(math.hypot(b[0] - a[0], b[1] - a[1]) / (0.5 * cm.resolution)) + 1)
+        blocked += _check_segment(cm if trial % 2 else office_costmap, a, b, int(samples))
+    assert 40 < blocked < 360
+    # ends a hair inside a wall's lethal cells, the way there free: only the last sample, exactly at
+    # the end, is lethal
+    lethal = office_costmap.lethal
+    rows, cols = np.nonzero(lethal[:, 11:] & ~lethal[:, 10:-1])
+    walls = 0
+    for r, c in zip(rows[::7], cols[::7] + 11):
+        if lethal[r, c - 11 : c].any():
+            continue
+        y = g.origin_y + (r + 0.5) * office_costmap.resolution
+        edge = g.origin_x + c * office_costmap.resolution
+        a, b = (edge - 0.45, y), (edge + 1e-9, y)
+        assert office_costmap.world_to_cell(*b) == (r, c)
+        samples = math.ceil(0.45 / (0.5 * office_costmap.resolution)) + 1
+        assert _check_segment(office_costmap, a, b, samples)
+        walls += 1
+    assert walls > 20
+
+
+def test_arc_lengths_are_the_oracles():
+    rng = np.random.default_rng(39)
+    for n in (0, 1, 2, 3, 10, 50):
+        for _ in range(30):
+            points = np.cumsum(rng.normal(0, 1, (n, 2)), axis=0)
+            if n > 2:
+                points[1] = points[2]
+            np.testing.assert_array_equal(cumulative_lengths(points), ref.cumulative_lengths(points))
+            np.testing.assert_array_equal(cumulative_lengths(points.T.copy().T), ref.cumulative_lengths(points))
 
 
 # -- scan points ------------------------------------------------------------------------------------
@@ -202,11 +252,23 @@ def recorded():
     from rescuemesh.scenarios import ScenarioOptions
     from rescuemesh.scenarios.runner import run_scenario
 
-    rec = {"scans": [], "paths": [], "shortcuts": [], "coarse": []}
+    rec = {"scans": [], "paths": [], "shortcuts": [], "coarse": [], "segments": [], "polylines": []}
     points_in_map = LaserScan.points_in_map
     any_lethal_along = Costmap.any_lethal_along
     graph_over = MCPPlanner._graph_over
     short = planner.shortcut
+    segment_any_lethal = Costmap.segment_any_lethal
+    from_points = navigate.Path.from_points.__func__
+
+    def record_segment(self, a, b, samples):
+        if len(rec["segments"]) < 300:
+            rec["segments"].append((self, a, b, samples))
+        return segment_any_lethal(self, a, b, samples)
+
+    def record_polyline(cls, points):
+        if len(rec["polylines"]) < 300:
+            rec["polylines"].append(np.array(points, dtype=float))
+        return from_points(cls, points)
 
     def record_scan(self):
         if len(rec["scans"]) < 100:
@@ -233,6 +295,8 @@ def recorded():
         mp.setattr(Costmap, "any_lethal_along", record_path)
         mp.setattr(MCPPlanner, "_graph_over", record_coarse)
         mp.setattr(planner, "shortcut", record_shortcut)
+        mp.setattr(Costmap, "segment_any_lethal", record_segment)
+        mp.setattr(navigate.Path, "from_points", classmethod(record_polyline))
         run_scenario("follow", ScenarioOptions(seed=0))
     assert navigate.NavigateToPose._blocked  # (the path check is what _blocked calls)
     return rec
@@ -252,3 +316,8 @@ def test_the_kernels_are_the_oracles_on_inputs_recorded_from_a_follow_run(record
         _check_coarse(cost, k, window)
     for cm, points in recorded["shortcuts"]:
         _check_shortcut(cm, points)
+    assert len(recorded["segments"]) >= 50 and len(recorded["polylines"]) >= 100
+    for cm, a, b, samples in recorded["segments"]:
+        _check_segment(cm, a, b, samples)
+    for points in recorded["polylines"]:
+        np.testing.assert_array_equal(cumulative_lengths(points), ref.cumulative_lengths(points))

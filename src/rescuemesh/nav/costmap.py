@@ -176,6 +176,12 @@ class Costmap:
         return kernels.path_any_lethal(pts, cum, float(s0), float(s1), float(step),
                                        *self._lethal_args(clear_center, clear_radius))
 
+    def segment_any_lethal(self, a: tuple[float, float], b: tuple[float, float], samples: int) -> bool:
+        """`any_lethal` of `samples` (>= 2) points evenly spaced from a to b (m), both included
+        (`np.linspace`): one compiled call."""
+        return kernels.segment_any_lethal(float(a[0]), float(a[1]), float(b[0]), float(b[1]), int(samples),
+                                          *self._lethal_args(None, 0.0)[:-3])
+
     def _lethal_args(self, clear_center: tuple[float, float] | None, clear_radius: float) -> tuple:
         """The arguments of kernels.any_lethal after the points: the grid, the lethal cells, the
         obstacle cells when not stamped, the lethal disc and the cleared circle."""

@@ -327,3 +327,34 @@ def stamped(cost, r0, c0, obstacle_rows, obstacle_cols, kernel_rows, kernel_cols
             if 0 <= r < h and 0 <= c < w and kernel_costs[i] > out[r, c]:
                 out[r, c] = kernel_costs[i]
     return out
+
+
+@compiled("b1(f8, f8, f8, f8, i8, f8, f8, f8, i8, i8, b1[::1], i8[::1], i8[::1], b1[:, ::1])")
+def segment_any_lethal(ax, ay, bx, by, samples, origin_x, origin_y, resolution, rows, cols, lethal, obstacle_rows,
+                       obstacle_cols, disc):
+    """`any_lethal` of `samples` (>= 2) points evenly spaced from (ax, ay) to (bx, by), both ends
+    included (np.linspace's arithmetic: a + (i / (samples - 1)) * (b - a), the last exactly b)."""
+    f = np.empty(samples)
+    step = 1.0 / (samples - 1)
+    for t in range(samples - 1):
+        f[t] = t * step
+    f[samples - 1] = 1.0
+    dx, dy = bx - ax, by - ay
+    xs = np.empty(samples)
+    ys = np.empty(samples)
+    for t in range(samples):
+        xs[t] = ax + f[t] * dx
+        ys[t] = ay + f[t] * dy
+    return any_lethal(xs, ys, origin_x, origin_y, resolution, rows, cols, lethal, obstacle_rows, obstacle_cols, disc,
+                      0.0, 0.0, 0.0)
+
+
+@compiled("f8[::1](f8[:, ::1])")
+def cumulative_lengths(points):
+    """Arc length at each vertex of the (N, 2) polyline `points`, from 0 (the hypot of each step,
+    summed in order, as np.cumsum does)."""
+    n = points.shape[0]
+    cum = np.zeros(n)
+    for i in range(1, n):
+        cum[i] = cum[i - 1] + math.hypot(points[i, 0] - points[i - 1, 0], points[i, 1] - points[i - 1, 1])
+    return cum

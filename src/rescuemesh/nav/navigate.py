@@ -219,9 +219,7 @@ class NavigateToPose:
         if gap < 1e-6:
             return path
         n = max(2, math.ceil(gap / (0.5 * self.costmap.resolution)) + 1)
-        t = np.linspace(0.0, 1.0, n)
-        xs, ys = end[0] + t * (goal.x - end[0]), end[1] + t * (goal.y - end[1])
-        if self.costmap.any_lethal(xs, ys):
+        if self.costmap.segment_any_lethal((end[0], end[1]), (goal.x, goal.y), n):  # every half cell
             return None
         return Path.from_points(np.vstack([path.points, [[goal.x, goal.y]]]))
 
