@@ -50,7 +50,7 @@ class LaserScan:
 
     def points_in_map(self) -> np.ndarray:
         """(N, 2) map-frame points of the finite returns within [range_min, range_max]."""
-        # one compiled pass (nav/kernels.py): the ranges are read as float64, as every producer gives them
+        # one compiled pass (body_kernels.py): the ranges are read as float64, as every producer gives them
         r = np.ascontiguousarray(self.ranges, dtype=float)
         o = self.origin
         return scan_points(r, _beam_angles(self.angle_min, self.angle_increment, len(r)), float(self.range_min),

@@ -6,7 +6,7 @@ arrays and numbers; it lives beside body.py, not in nav/, which imports body.py)
 
 # Every robot turns every sweep (a few hundred beams, 10 to 20 times a second) into map points: as
 # numpy it was a dozen calls over the beams. The arithmetic is numpy's (cos, sin, r * c + x, in that
-# order): the same points (tests/oracles/test_nav_kernels.py, against tests/oracles/nav.py).
+# order): the same points (tests/oracles/test_nav_plan_kernels.py, against tests/oracles/nav.py).
 
 from __future__ import annotations
 

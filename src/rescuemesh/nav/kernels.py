@@ -1,14 +1,18 @@
-"""The navigation's per-tick geometry, compiled: a scan's obstacle cells, the lethal check of points
-against the costmap and its scan obstacles, and the controller's swept-footprint clearance.
+"""The navigation's hot loops, compiled: per sweep a scan's obstacle cells; per tick the lethal check
+of points (a path's samples, a straight extension's) against the costmap and its scan obstacles,
+and the controller's swept-footprint clearance; per plan stamping scan obstacles into a window, the
+planner's coarse grid and step costs, shortcutting, and arc lengths.
 
-Owns: these loops over arrays. Must not know: Costmap, paths, robots, time (nav/costmap.py and
-nav/controller.py call them with plain arrays and numbers).
+Owns: these loops over arrays. Must not know: Costmap, paths, robots, time (nav/costmap.py,
+nav/controller.py, nav/planner.py, nav/path.py call them with plain arrays and numbers).
 """
 
-# Each runs once or twice per robot per 50 ms tick over a few hundred scan points or path samples:
-# as numpy they were a few dozen calls of about a microsecond each, most of the navigation's time.
-# The arithmetic is numpy's, element by element (floor, hypot, atan2, sqrt): the same numbers and
-# the same decisions as the numpy they replaced (tests/oracles/test_nav_kernels.py).
+# Each runs once or twice per robot per 50 ms tick over a few hundred scan points or path samples,
+# or once per plan over the search window: as numpy they were a few dozen calls of about a
+# microsecond each, most of the navigation's time. The arithmetic is numpy's, element by element
+# and in numpy's order (floor, hypot, atan2, sqrt; np.arange's, np.interp's and np.linspace's
+# formulas; float32 where the costs are): the same numbers and the same decisions as the numpy
+# they replaced (tests/oracles/test_nav_kernels.py, test_nav_plan_kernels.py).
 
 from __future__ import annotations
 
