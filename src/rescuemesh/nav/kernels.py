@@ -121,7 +121,7 @@ def scan_clearance(points, x0, y0, yaw, max_range, curvature, footprint_radius, 
     return best
 
 
-@compiled("f8[::1](f8, f8, f8)")
+@compiled()  # no signature: compiled into its callers, not loaded at import
 def arange(start, stop, step):
     """`np.arange(start, stop, step)` for step > 0, with numpy's arithmetic: its length is
     ceil((stop - start) / step), its values start, start + step, then start + i * d, where d is
@@ -139,7 +139,7 @@ def arange(start, stop, step):
     return out
 
 
-@compiled("f8[::1](f8[::1], f8[::1], f8[::1])")
+@compiled()  # no signature: compiled into its callers, not loaded at import
 def interp(x, xp, fp):
     """`np.interp(x, xp, fp)` (xp increasing, len >= 1) with numpy's arithmetic: clamped to fp's
     ends, fp[j] at x == xp[j], else the slope of segment j times (x - xp[j]) plus fp[j]."""
@@ -224,7 +224,7 @@ def coarse_step_costs(cost, k, rows, cols, weight):
     return lethal, step
 
 
-@compiled("f4(f4[:, :], i8, i8, i8, i8, f8, f8, f8, f8, f8)")
+@compiled()  # no signature: compiled into its callers, not loaded at import
 def _cost_at(cost, r0, c0, rows, cols, origin_x, origin_y, resolution, x, y):
     """Cost of the grid cell holding (x, y): LETHAL off the grid, cost[row - r0, col - c0] inside
     `cost` (a window of the grid), -1 on the grid but outside the window (not known here)."""
@@ -238,7 +238,7 @@ def _cost_at(cost, r0, c0, rows, cols, origin_x, origin_y, resolution, x, y):
     return np.float32(-1.0)
 
 
-@compiled("f4(f8[:, ::1], i8, i8, i8, f8[::1], f4[:, :], i8, i8, i8, i8, f8, f8, f8)")
+@compiled()  # no signature: compiled into its callers, not loaded at import
 def _segment_max_cost(points, i, e, samples, f, cost, r0, c0, rows, cols, origin_x, origin_y, resolution):
     """Highest cost along the segment points[i] -> points[e] at the `samples` fractions `f`; -1 when
     a sample is on the grid outside `cost`."""
