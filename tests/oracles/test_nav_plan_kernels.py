@@ -214,7 +214,8 @@ def _cell_path(cm, rng, n):
     steps = np.array([(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)])
     rcs = rc + np.cumsum(np.vstack([[0, 0], steps[rng.integers(0, 8, n - 1)] * rng.integers(1, 3)]), axis=0)
     g = cm.grid
-    return np.column_stack([g.origin_x + (rcs[:, 1] + 0.5) * cm.resolution, g.origin_y + (rcs[:, 0] + 0.5) * cm.resolution])
+    return np.column_stack([g.origin_x + (rcs[:, 1] + 0.5) * cm.resolution,
+                            g.origin_y + (rcs[:, 0] + 0.5) * cm.resolution])
 
 
 def _check_shortcut(cm, points):
