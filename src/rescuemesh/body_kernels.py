@@ -15,13 +15,13 @@ import math
 import numpy as np
 from numba import types
 
-from rescuemesh.jit import compiled
+from rescuemesh.jit import compiled_on_first_call
 
 _F8 = types.float64
 _READONLY_F8 = types.Array(_F8, 1, "C", readonly=True)  # also takes writable arrays (the cached angles are not)
 
 
-@compiled(_F8[:, ::1](_READONLY_F8, _READONLY_F8, _F8, _F8, _F8, _F8, _F8))
+@compiled_on_first_call(_F8[:, ::1](_READONLY_F8, _READONLY_F8, _F8, _F8, _F8, _F8, _F8))
 def scan_points(ranges, angles, range_min, range_max, x, y, yaw):
     """The map points (N, 2) of the beams whose range is within [range_min, range_max] (and finite),
     beam i at angles[i] + yaw from (x, y): (x + r cos a, y + r sin a)."""

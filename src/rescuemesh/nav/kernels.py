@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from rescuemesh.jit import compiled
+from rescuemesh.jit import compiled, compiled_on_first_call
 
 _HALF_PI = math.pi / 2
 _TWO_PI = 2.0 * math.pi
@@ -180,15 +180,15 @@ def interp(x, xp, fp):
     return out
 
 
-@compiled("b1(f8[:, ::1], f8[::1], f8, f8, f8, f8, f8, f8, i8, i8, b1[::1], i8[::1], i8[::1], b1[:, ::1], f8, f8, "
-          "f8)")
+@compiled_on_first_call("b1(f8[:, ::1], f8[::1], f8, f8, f8, f8, f8, f8, i8, i8, b1[::1], i8[::1], i8[::1], "
+                        "b1[:, ::1], f8, f8, f8)")
 def path_any_lethal(points, cum, s0, s1, step, origin_x, origin_y, resolution, rows, cols, lethal, obstacle_rows,
                     obstacle_cols, disc, clear_x, clear_y, clear_radius):
     """`any_lethal` of the path (`points`, arc lengths `cum`) sampled every `step` m from arc length
     s0 up to s1 (`arange`, `interp`): whether the path ahead crosses a lethal cell."""
     s = arange(s0, s1, step)
-    xs = interp(s, cum, np.ascontiguousarray(points[:, 0]))
-    ys = interp(s, cum, np.ascontiguousarray(points[:, 1]))
+    xs = interp(s, cum, points[:, 0])
+    ys = interp(s, cum, points[:, 1])
     return any_lethal(xs, ys, origin_x, origin_y, resolution, rows, cols, lethal, obstacle_rows, obstacle_cols, disc,
                       clear_x, clear_y, clear_radius)
 
@@ -197,7 +197,7 @@ def path_any_lethal(points, cum, s0, s1, step, origin_x, origin_y, resolution, r
 _LETHAL32 = np.float32(1.0)  # costmap.LETHAL, as the float32 costs hold it
 
 
-@compiled("Tuple((b1[:, ::1], f8[:, ::1]))(f4[:, :], i8, i8, i8, f4)")
+@compiled_on_first_call("Tuple((b1[:, ::1], f8[:, ::1]))(f4[:, :], i8, i8, i8, f4)")
 def coarse_step_costs(cost, k, rows, cols, weight):
     """The planner's coarse grid of (`rows`, `cols`) blocks of k x k cells of `cost` (float32 in
     [0, 1]; a block's cells past cost's edge count as lethal): (lethal: the block's highest cost is
@@ -254,7 +254,7 @@ def _segment_max_cost(points, i, e, samples, f, cost, r0, c0, rows, cols, origin
     return top
 
 
-@compiled("i8[::1](f8[:, ::1], f4[:, :], i8, i8, i8, i8, f8, f8, f8, f8, f4)")
+@compiled_on_first_call("i8[::1](f8[:, ::1], f4[:, :], i8, i8, i8, i8, f8, f8, f8, f8, f4)")
 def shortcut_kept(points, cost, r0, c0, rows, cols, origin_x, origin_y, resolution, max_segment_m, cost_tolerance):
     """Indices of the points of a cell path (N > 2, m) that line-of-sight shortcutting keeps
     (nav/planner.py, `shortcut`, says the rule), the costs read from `cost`, the window of the
@@ -277,7 +277,9 @@ def shortcut_kept(points, cost, r0, c0, rows, cols, origin_x, origin_y, resoluti
     i = 0
     while i < n - 1:
         reach = cum[i] + max_segment_m
-        j = np.searchsorted(cum, reach, side="right") - 1
+        j = i  # the last point whose arc length is <= reach (np.searchsorted(..., side="right") - 1)
+        while j + 1 < n and cum[j + 1] <= reach:
+            j += 1
         j = min(max(j, i + 1), n - 1)
         if j > i + 1:  # (the raw step itself is always allowed)
             top = raw[i]
@@ -312,7 +314,7 @@ def shortcut_kept(points, cost, r0, c0, rows, cols, origin_x, origin_y, resoluti
     return kept[:m].copy()
 
 
-@compiled("f4[:, ::1](f4[:, :], i8, i8, i8[::1], i8[::1], i8[::1], i8[::1], f4[::1], i8)")
+@compiled_on_first_call("f4[:, ::1](f4[:, :], i8, i8, i8[::1], i8[::1], i8[::1], i8[::1], f4[::1], i8)")
 def stamped(cost, r0, c0, obstacle_rows, obstacle_cols, kernel_rows, kernel_cols, kernel_costs, reach):
     """A copy of `cost` (the window of the grid from cell (r0, c0)) where each cell holds the
     highest of its cost and the costs `kernel_costs` that the inflation kernel (cell offsets
@@ -333,7 +335,7 @@ def stamped(cost, r0, c0, obstacle_rows, obstacle_cols, kernel_rows, kernel_cols
     return out
 
 
-@compiled("b1(f8, f8, f8, f8, i8, f8, f8, f8, i8, i8, b1[::1], i8[::1], i8[::1], b1[:, ::1])")
+@compiled_on_first_call("b1(f8, f8, f8, f8, i8, f8, f8, f8, i8, i8, b1[::1], i8[::1], i8[::1], b1[:, ::1])")
 def segment_any_lethal(ax, ay, bx, by, samples, origin_x, origin_y, resolution, rows, cols, lethal, obstacle_rows,
                        obstacle_cols, disc):
     """`any_lethal` of `samples` (>= 2) points evenly spaced from (ax, ay) to (bx, by), both ends
@@ -353,7 +355,7 @@ def segment_any_lethal(ax, ay, bx, by, samples, origin_x, origin_y, resolution, 
                       0.0, 0.0, 0.0)
 
 
-@compiled("f8[::1](f8[:, ::1])")
+@compiled_on_first_call("f8[::1](f8[:, ::1])")
 def cumulative_lengths(points):
     """Arc length at each vertex of the (N, 2) polyline `points`, from 0 (the hypot of each step,
     summed in order, as np.cumsum does)."""
