@@ -60,11 +60,13 @@ def _writable(folder: str) -> bool:
 
 
 def compiled_on_first_call(signature=None, **options) -> Callable:
-    """`compiled(signature, **options)`, built at the function's first call rather than at import:
-    a kernel a process may never call costs it nothing, and a robot process without a writable
-    cache joins its world before it compiles (each kernel costs 0.3 to 2 s of CPU to compile)."""
+    """`compiled(signature, **options)`, built at import when numba's cache holds the function (loading
+    it costs milliseconds), else at its first call: a robot process without a writable cache joins
+    its world before it compiles (each kernel costs 0.3 to 2 s of CPU to compile)."""
 
     def decorate(function: Callable) -> Callable:
+        if _cached(function, options):
+            return compiled(signature, **options)(function)
         kernel = None
 
         @functools.wraps(function)
@@ -77,3 +79,12 @@ def compiled_on_first_call(signature=None, **options) -> Callable:
         return call
 
     return decorate
+
+
+def _cached(function: Callable, options: dict) -> bool:
+    """Whether numba's cache index for `function` exists where numba would look for it now."""
+    try:
+        lazy = numba.njit(cache=True, **{"nogil": True, **options})(function)  # compiles nothing yet
+        return os.path.exists(lazy._cache._cache_file._index_path)
+    except (RuntimeError, AttributeError):  # no cache folder; another numba's internals
+        return False
