@@ -11,11 +11,11 @@ from __future__ import annotations
 import abc
 import enum
 import functools
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from rescuemesh.body_kernels import scan_points
 from rescuemesh.geometry import Pose2D
 
 
@@ -49,20 +49,11 @@ class LaserScan:
 
     def points_in_map(self) -> np.ndarray:
         """(N, 2) map-frame points of the finite returns within [range_min, range_max]."""
-        r = self.ranges
-        ok = (r >= self.range_min) & (r <= self.range_max)  # False for nan, and for inf below a finite range_max
-        if not math.isfinite(self.range_max):
-            ok &= np.isfinite(r)
-        r = r[ok]
-        a = _beam_angles(self.angle_min, self.angle_increment, len(ok))[ok] + self.origin.yaw
-        # x and y each computed in place in one contiguous row: the result is the transpose (its
-        # columns contiguous, as its users read them)
-        xy = np.empty((2, len(r)))
-        np.multiply(r, np.cos(a, out=xy[0]), out=xy[0])
-        np.multiply(r, np.sin(a, out=xy[1]), out=xy[1])
-        xy[0] += self.origin.x
-        xy[1] += self.origin.y
-        return xy.T
+        # one compiled pass (body_kernels.py): the ranges are read as float64, as every producer gives them
+        r = np.ascontiguousarray(self.ranges, dtype=float)
+        o = self.origin
+        return scan_points(r, _beam_angles(self.angle_min, self.angle_increment, len(r)), float(self.range_min),
+                           float(self.range_max), o.x, o.y, o.yaw)
 
 
 @functools.lru_cache(maxsize=16)

@@ -1,11 +1,14 @@
-"""Oracles of the navigation kernels (nav/kernels.py): the numpy that nav/costmap.py and
-nav/controller.py ran before they were compiled, as functions of plain arrays."""
+"""Oracles of the navigation kernels (nav/kernels.py, body_kernels.py): the numpy that
+nav/costmap.py, nav/controller.py, nav/navigate.py, nav/planner.py and body.py ran before they were
+compiled, as functions of plain arrays (or of a Costmap, for the planner's shortcutting)."""
 
 from __future__ import annotations
 
 import math
 
 import numpy as np
+
+from rescuemesh.nav.costmap import LETHAL
 
 
 def cells_of(xy, origin_xy, resolution, shape):
@@ -97,3 +100,128 @@ def clearance(x, y, curvature, footprint_radius, corridor_margin, horizon):
     gap = along - extent
     gap = gap[gap <= horizon]
     return float(np.min(gap)) if len(gap) else math.inf
+
+
+def path_samples(points, cum, s0, s1, step):
+    """NavigateToPose._blocked's samples: every `step` m of arc length from s0 to before s1, clamped."""
+    s = np.arange(s0, s1, step)  # np.interp clamps to the ends as point_at does
+    return np.interp(s, cum, points[:, 0]), np.interp(s, cum, points[:, 1])
+
+
+def points_in_map(ranges, angles, range_min, range_max, x, y, yaw):
+    """LaserScan.points_in_map: the map points of the valid returns (angles: the beams' in the sensor frame)."""
+    r = ranges
+    ok = (r >= range_min) & (r <= range_max)  # False for nan, and for inf below a finite range_max
+    if not math.isfinite(range_max):
+        ok &= np.isfinite(r)
+    r = r[ok]
+    a = angles[ok] + yaw
+    xy = np.empty((2, len(r)))
+    np.multiply(r, np.cos(a, out=xy[0]), out=xy[0])
+    np.multiply(r, np.sin(a, out=xy[1]), out=xy[1])
+    xy[0] += x
+    xy[1] += y
+    return xy.T
+
+
+def coarse_cost(cost, k, window):
+    """MCPPlanner._coarse_cost: the highest cost of each k x k block of `window` (blocks past the
+    map's edge lethal)."""
+    r0, r1, c0, c1 = window
+    if k == 1:
+        return cost
+    h, w = cost.shape
+    padded = np.full(((r1 - r0) * k, (c1 - c0) * k), LETHAL, dtype=cost.dtype)
+    padded[:h, :w] = cost
+    out = padded[0::k, 0::k].copy()
+    for dr in range(k):
+        for dc in range(k):
+            if dr or dc:
+                np.maximum(out, padded[dr::k, dc::k], out=out)
+    return out
+
+
+def graph_costs(cost, k, window, cost_weight):
+    """MCPPlanner._graph_over before the MCP graph: (coarse lethal mask, step costs handed to MCP_Geometric)."""
+    coarse = coarse_cost(cost, k, window)
+    lethal = coarse >= LETHAL
+    return lethal, np.where(lethal, np.inf, 1.0 + cost_weight * coarse)
+
+
+def segment_samples(costmap, a, bs):
+    """planner.segment_samples: samples along each segment a -> bs[j]: every 0.75 cell along the longest."""
+    longest = float(np.max(np.hypot(*(bs - a).T))) if len(bs) else 0.0
+    return max(2, int(math.ceil(longest / (0.75 * costmap.resolution))) + 1)
+
+
+def segment_max_costs(costmap, a, bs, samples=None):
+    """planner.segment_max_costs: highest cost along each segment a -> bs[j], sampled `samples` times."""
+    bs = np.asarray(bs, dtype=float).reshape(-1, 2)
+    n = segment_samples(costmap, a, bs) if samples is None else samples
+    f = np.linspace(0.0, 1.0, n)
+    samples_xy = a[None, None, :] + f[None, :, None] * (bs - a)[:, None, :]
+    return costmap.costs_at(samples_xy.reshape(-1, 2)).reshape(len(bs), n).max(axis=1)
+
+
+def shortcut(costmap, points, *, max_segment_m=2.0, cost_tolerance=0.05):
+    """planner.shortcut: line-of-sight shortcutting of a cell path on the costmap."""
+    n = len(points)
+    if n <= 2:
+        return points
+    raw_cost = costmap.costs_at(points)
+    step = np.hypot(*np.diff(points, axis=0).T)
+    cum = np.concatenate(([0.0], np.cumsum(step)))
+    kept = [0]
+    i = 0
+    while i < n - 1:
+        j = min(max(int(np.searchsorted(cum, cum[i] + max_segment_m, side="right")) - 1, i + 1), n - 1)
+        if j > i + 1:  # (the raw step itself is always allowed)
+            ends = points[i + 1 : j + 1]
+            limit = np.maximum.accumulate(raw_cost[i : j + 1])[1:] + cost_tolerance
+            samples = segment_samples(costmap, points[i], ends)
+            seg = segment_max_costs(costmap, points[i], ends[-1:], samples)
+            if not (seg[0] < LETHAL and seg[0] <= limit[-1]):
+                seg = segment_max_costs(costmap, points[i], ends, samples)
+                ok = (seg < LETHAL) & (seg <= limit)
+                ok[0] = True
+                j = i + 1 + int(np.flatnonzero(ok)[-1])
+        i = j
+        kept.append(i)
+    return points[kept]
+
+
+def stamped(static_cost, r0, r1, c0, c1, obstacle_rc, kernel, reach):
+    """Costmap._stamped: static_cost[r0:r1, c0:c1] with every obstacle cell's inflation kernel
+    (offsets and costs) stamped, the highest cost winning (stamped whole into a padded copy)."""
+    cost = static_cost[r0:r1, c0:c1]
+    if len(obstacle_rc[0]) == 0:
+        return cost.copy()
+    dr, dc, kval = kernel
+    n = reach
+    orow, ocol = obstacle_rc
+    near = np.flatnonzero((orow >= r0 - n) & (orow < r1 + n) & (ocol >= c0 - n) & (ocol < c1 + n))
+    if len(near) == 0:
+        return cost.copy()
+    hh, ww = cost.shape
+    pad = 2 * n
+    wide = ww + 2 * pad
+    padded = np.zeros((hh + 2 * pad, wide), dtype=cost.dtype)
+    padded[pad : pad + hh, pad : pad + ww] = cost
+    centres = (orow[near] - (r0 - pad)) * wide + (ocol[near] - (c0 - pad))
+    cells = (centres[:, None] + (dr * wide + dc)[None, :]).reshape(-1)
+    np.maximum.at(padded.reshape(-1), cells, np.broadcast_to(kval, (len(near), len(kval))).reshape(-1))
+    return padded[pad : pad + hh, pad : pad + ww].copy()
+
+
+def segment_samples_between(a, b, samples):
+    """NavigateToPose._extended's samples: `samples` points evenly from a to b (np.linspace)."""
+    t = np.linspace(0.0, 1.0, samples)
+    return a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])
+
+
+def cumulative_lengths(points):
+    """path.cumulative_lengths: arc length at each vertex of the (N, 2) polyline, from 0."""
+    if len(points) < 2:
+        return np.zeros(len(points))
+    seg = np.hypot(*np.diff(points, axis=0).T)
+    return np.concatenate(([0.0], np.cumsum(seg)))

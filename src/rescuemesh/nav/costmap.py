@@ -164,6 +164,27 @@ class Costmap:
         cell's kernel: the same answer as the stamped array, without stamping the map (compiled)."""
         xs = np.ascontiguousarray(xs, dtype=float)
         ys = np.ascontiguousarray(ys, dtype=float)
+        return kernels.any_lethal(xs, ys, *self._lethal_args(clear_center, clear_radius))
+
+    def any_lethal_along(self, points: np.ndarray, cum: np.ndarray, s0: float, s1: float, step: float, *,
+                         clear_center: tuple[float, float] | None = None, clear_radius: float = 0.0) -> bool:
+        """`any_lethal` of the polyline `points` ((N, 2) m, arc lengths `cum` m at its vertices)
+        sampled every `step` m from arc length `s0` to before `s1` (`np.arange`, then `np.interp`,
+        which clamps to the ends): one compiled call."""
+        pts = np.ascontiguousarray(points, dtype=float).reshape(-1, 2)
+        cum = np.ascontiguousarray(cum, dtype=float)
+        return kernels.path_any_lethal(pts, cum, float(s0), float(s1), float(step),
+                                       *self._lethal_args(clear_center, clear_radius))
+
+    def segment_any_lethal(self, a: tuple[float, float], b: tuple[float, float], samples: int) -> bool:
+        """`any_lethal` of `samples` (>= 2) points evenly spaced from a to b (m), both included
+        (`np.linspace`): one compiled call."""
+        return kernels.segment_any_lethal(float(a[0]), float(a[1]), float(b[0]), float(b[1]), int(samples),
+                                          *self._lethal_args(None, 0.0)[:-3])
+
+    def _lethal_args(self, clear_center: tuple[float, float] | None, clear_radius: float) -> tuple:
+        """The arguments of kernels.any_lethal after the points: the grid, the lethal cells, the
+        obstacle cells when not stamped, the lethal disc and the cleared circle."""
         cx, cy = clear_center if clear_center is not None and clear_radius > 0.0 else (0.0, 0.0)
         radius = clear_radius if clear_center is not None else 0.0
         h, w = self.shape
@@ -171,8 +192,8 @@ class Costmap:
             lethal, (orow, ocol) = self._lethal.reshape(-1), _NO_OBSTACLES
         else:
             lethal, (orow, ocol) = self._static_lethal.reshape(-1), self._obstacle_rc
-        return kernels.any_lethal(xs, ys, self.grid.origin_x, self.grid.origin_y, self.resolution, h, w, lethal,
-                                  orow, ocol, self._lethal_disc, cx, cy, radius)
+        return (self.grid.origin_x, self.grid.origin_y, self.resolution, h, w, lethal, orow, ocol, self._lethal_disc,
+                cx, cy, radius)
 
     def clearance_at(self, x: float, y: float) -> float:
         """Distance in m from (x, y) to the nearest static map obstacle (0 outside the grid)."""
@@ -253,6 +274,15 @@ class Costmap:
             self._window = (key, self._stamped(*key))
         return self._window[1]
 
+    def known_costs(self) -> tuple[np.ndarray, int, int]:
+        """(costs, row, col of its first cell): the whole `cost` array when it is built, else the
+        last window `cost_in` stamped, else the whole array (stamped now). Compiled readers
+        (nav/kernels.py) take cells inside it from it and the whole array for any other."""
+        if self._cost is None and self._window is not None:
+            (r0, _, c0, _), part = self._window
+            return part, r0, c0
+        return self.cost, 0, 0
+
     def _stamp_obstacles(self) -> None:
         """The full cost array: the static layer with every obstacle cell's inflation kernel stamped."""
         h, w = self.shape
@@ -261,31 +291,13 @@ class Costmap:
 
     def _stamped(self, r0: int, r1: int, c0: int, c1: int) -> np.ndarray:
         """A copy of `static_cost[r0:r1, c0:c1]` (within the grid) with the inflation kernel of
-        every obstacle cell stamped where it reaches (the highest cost wins).
-
-        The kernels are stamped whole into a copy padded by twice the kernel's reach on every
-        side (an obstacle cell reaching the window lies within one reach of it, its kernel within
-        two), then the window is cut out: no kernel cell needs a bounds test, and each window
-        cell gets the maximum of the same values as when the cells off the window are left out."""
+        every obstacle cell stamped where it reaches (the highest cost wins; compiled)."""
         cost = self.static_cost[r0:r1, c0:c1]
         if len(self._obstacle_cells) == 0:
             return cost.copy()
         dr, dc, kval = self._kernel
-        n = self._kernel_reach
         orow, ocol = self._obstacle_rc
-        near = np.flatnonzero((orow >= r0 - n) & (orow < r1 + n) & (ocol >= c0 - n) & (ocol < c1 + n))
-        if len(near) == 0:
-            return cost.copy()
-        hh, ww = cost.shape
-        pad = 2 * n
-        wide = ww + 2 * pad
-        padded = np.zeros((hh + 2 * pad, wide), dtype=cost.dtype)
-        padded[pad : pad + hh, pad : pad + ww] = cost
-        centres = (orow[near] - (r0 - pad)) * wide + (ocol[near] - (c0 - pad))
-        cells = (centres[:, None] + (dr * wide + dc)[None, :]).reshape(-1)
-        # flat operands: ufunc.at takes a slow path when it has to broadcast them
-        np.maximum.at(padded.reshape(-1), cells, np.broadcast_to(kval, (len(near), len(kval))).reshape(-1))
-        return padded[pad : pad + hh, pad : pad + ww].copy()
+        return kernels.stamped(cost, r0, c0, orow, ocol, dr, dc, kval, self._kernel_reach)
 
     def _make_kernel(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Cell offsets (drow, dcol) and costs of one obstacle cell, inflated: the stamp for scan points."""

@@ -219,9 +219,7 @@ class NavigateToPose:
         if gap < 1e-6:
             return path
         n = max(2, math.ceil(gap / (0.5 * self.costmap.resolution)) + 1)
-        t = np.linspace(0.0, 1.0, n)
-        xs, ys = end[0] + t * (goal.x - end[0]), end[1] + t * (goal.y - end[1])
-        if self.costmap.any_lethal(xs, ys):
+        if self.costmap.segment_any_lethal((end[0], end[1]), (goal.x, goal.y), n):  # every half cell
             return None
         return Path.from_points(np.vstack([path.points, [[goal.x, goal.y]]]))
 
@@ -362,10 +360,9 @@ class NavigateToPose:
         s0 = g.s_progress + self.params.controller.footprint_radius + 0.1
         if s0 >= g.path.length_m:
             return False
-        s = np.arange(s0, g.path.length_m, cm.resolution)  # np.interp clamps to the ends as point_at does
-        xs = np.interp(s, g.path.cum, g.path.points[:, 0])
-        ys = np.interp(s, g.path.cum, g.path.points[:, 1])
-        return cm.any_lethal(xs, ys, clear_center=(g.pose.x, g.pose.y), clear_radius=g.clear_radius)
+        # samples every cell along the path (clamped to its ends as point_at is), tested in one compiled call
+        return cm.any_lethal_along(g.path.points, g.path.cum, s0, g.path.length_m, cm.resolution,
+                                   clear_center=(g.pose.x, g.pose.y), clear_radius=g.clear_radius)
 
     def _replan(self, g: _Goal, now: float, pose: Pose2D) -> bool:
         """Plan from `pose`; False (goal ABORTED "no path") when there is none even without scan obstacles."""

@@ -1,7 +1,7 @@
 """Planned paths as map-frame polylines, and the geometry the planner, controller and action share.
 
 Owns: `Path`, `Polyline` and arc lengths. Must not know how a path was planned or how it is
-followed; numpy and plain math only.
+followed; numpy and plain math only (the arc lengths compiled: nav/kernels.py).
 
 `Polyline` answers the controller's per-tick questions (project the robot, a point at an arc
 length, the part ahead) in plain Python floats over the few segments concerned, from per-path data
@@ -18,6 +18,8 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+
+from rescuemesh.nav import kernels
 
 
 @dataclass(frozen=True, eq=False)
@@ -57,11 +59,9 @@ class Path:
 
 
 def cumulative_lengths(points: np.ndarray) -> np.ndarray:
-    """Arc length in m at each vertex of the (N, 2) polyline, starting at 0."""
-    if len(points) < 2:
-        return np.zeros(len(points))
-    seg = np.hypot(*np.diff(points, axis=0).T)
-    return np.concatenate(([0.0], np.cumsum(seg)))
+    """Arc length in m at each vertex of the (N, 2) polyline, starting at 0 (each step's hypot,
+    summed in order; compiled: nav/kernels.py)."""
+    return kernels.cumulative_lengths(np.ascontiguousarray(points, dtype=float).reshape(-1, 2))
 
 
 class Polyline:

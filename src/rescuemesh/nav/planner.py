@@ -14,6 +14,7 @@ import numpy as np
 from skimage.graph import MCP_Geometric
 
 from rescuemesh.geometry import Pose2D
+from rescuemesh.nav import kernels
 from rescuemesh.nav.costmap import LETHAL, Costmap
 from rescuemesh.nav.path import Path
 
@@ -59,23 +60,6 @@ def make_planner(name: str = "mcp", **kw) -> Planner:
     return cls(**kw)
 
 
-def segment_samples(costmap: Costmap, a: np.ndarray, bs: np.ndarray) -> int:
-    """How many samples `segment_max_costs` takes along each segment a -> bs[j] (m): every 0.75
-    cell along the longest."""
-    longest = float(np.max(np.hypot(*(bs - a).T))) if len(bs) else 0.0
-    return max(2, int(math.ceil(longest / (0.75 * costmap.resolution))) + 1)
-
-
-def segment_max_costs(costmap: Costmap, a: np.ndarray, bs: np.ndarray, samples: int | None = None) -> np.ndarray:
-    """Highest cost in [0, 1] along each straight segment a -> bs[j] (m), sampled `samples` times
-    evenly from end to end (default: `segment_samples`)."""
-    bs = np.asarray(bs, dtype=float).reshape(-1, 2)
-    n = segment_samples(costmap, a, bs) if samples is None else samples
-    f = np.linspace(0.0, 1.0, n)
-    samples_xy = a[None, None, :] + f[None, :, None] * (bs - a)[:, None, :]
-    return costmap.costs_at(samples_xy.reshape(-1, 2)).reshape(len(bs), n).max(axis=1)
-
-
 def shortcut(
     costmap: Costmap, points: np.ndarray, *, max_segment_m: float = 2.0, cost_tolerance: float = 0.05
 ) -> np.ndarray:
@@ -85,31 +69,21 @@ def shortcut(
     raw path) whose straight segment is not lethal and whose highest cost exceeds the highest cost of
     the raw path it replaces by no more than `cost_tolerance`: the result stays in the middle of
     doorways as the raw path did, without its 45-degree staircase. The farthest point is tried
-    first (mostly it fits, and the nearer ones need not be sampled), with the samples the
-    segments to all of them get.
+    first (mostly it fits, and the nearer ones need not be sampled). A segment from a to b is
+    sampled at np.linspace(0, 1, n) between them, n giving a sample every 0.75 cell along the
+    longest segment tried from a; costs are float32, the tolerance added in float32. Compiled
+    (nav/kernels.py, `shortcut_kept`).
     """
-    n = len(points)
-    if n <= 2:
+    if len(points) <= 2:
         return points
-    raw_cost = costmap.costs_at(points)
-    step = np.hypot(*np.diff(points, axis=0).T)
-    cum = np.concatenate(([0.0], np.cumsum(step)))
-    kept = [0]
-    i = 0
-    while i < n - 1:
-        j = min(max(int(np.searchsorted(cum, cum[i] + max_segment_m, side="right")) - 1, i + 1), n - 1)
-        if j > i + 1:  # (the raw step itself is always allowed)
-            ends = points[i + 1 : j + 1]
-            limit = np.maximum.accumulate(raw_cost[i : j + 1])[1:] + cost_tolerance
-            samples = segment_samples(costmap, points[i], ends)
-            seg = segment_max_costs(costmap, points[i], ends[-1:], samples)
-            if not (seg[0] < LETHAL and seg[0] <= limit[-1]):
-                seg = segment_max_costs(costmap, points[i], ends, samples)
-                ok = (seg < LETHAL) & (seg <= limit)
-                ok[0] = True
-                j = i + 1 + int(np.flatnonzero(ok)[-1])
-        i = j
-        kept.append(i)
+    pts = np.ascontiguousarray(points, dtype=float)
+    h, w = costmap.shape
+    grid = (h, w, costmap.grid.origin_x, costmap.grid.origin_y, costmap.resolution, float(max_segment_m),
+            np.float32(cost_tolerance))
+    cost, r0, c0 = costmap.known_costs()
+    kept = kernels.shortcut_kept(pts, cost, r0, c0, *grid)
+    if len(kept) == 0:  # a sample off the stamped window: the whole map's costs (the same values there)
+        kept = kernels.shortcut_kept(pts, costmap.cost, 0, 0, *grid)
     return points[kept]
 
 
@@ -207,32 +181,21 @@ class MCPPlanner(Planner):
         return kept[2]
 
     def _graph_over(self, cost: np.ndarray, window: tuple[int, int, int, int]) -> tuple[np.ndarray, MCP_Geometric]:
-        """(coarse lethal mask, MCP graph) of the full-resolution costs `cost` of `window`."""
-        coarse = self._coarse_cost(cost, window)
-        lethal = coarse >= LETHAL
-        return lethal, MCP_Geometric(np.where(lethal, np.inf, 1.0 + self.cost_weight * coarse), fully_connected=True)
+        """(coarse lethal mask, MCP graph) of the full-resolution costs `cost` (float32, clipped to
+        the map) of `window`: each coarse cell holds the highest cost of its k x k block (blocks past
+        the map's edge count as lethal), a step into it costs 1 + cost_weight * that (float32), inf
+        when lethal. One compiled pass (nav/kernels.py, `coarse_step_costs`)."""
+        k = self.downsample
+        r0, r1, c0, c1 = window
+        rows, cols = (r1 - r0, c1 - c0) if k > 1 else cost.shape
+        lethal, step = kernels.coarse_step_costs(cost.astype(np.float32, copy=False), k, rows, cols,
+                                                 np.float32(self.cost_weight))
+        return lethal, MCP_Geometric(step, fully_connected=True)
 
     def _whole(self, costmap: Costmap) -> tuple[int, int, int, int]:
         """The window of the whole map's coarse cells."""
         k = self.downsample
         return (0, -(-costmap.shape[0] // k), 0, -(-costmap.shape[1] // k))
-
-    def _coarse_cost(self, cost: np.ndarray, window: tuple[int, int, int, int]) -> np.ndarray:
-        """The highest cost of each k x k block of cells in `window` (coarse cells), from `cost`,
-        its full-resolution costs clipped to the map (blocks past the map's edge count as lethal)."""
-        k = self.downsample
-        r0, r1, c0, c1 = window
-        if k == 1:
-            return cost
-        h, w = cost.shape
-        padded = np.full(((r1 - r0) * k, (c1 - c0) * k), LETHAL, dtype=cost.dtype)
-        padded[:h, :w] = cost
-        out = padded[0::k, 0::k].copy()
-        for dr in range(k):
-            for dc in range(k):
-                if dr or dc:
-                    np.maximum(out, padded[dr::k, dc::k], out=out)
-        return out
 
     def _box(self, costmap: Costmap, start: Pose2D, goal: Pose2D, margin: int) -> tuple[int, int, int, int] | None:
         """The coarse-cell window around start and goal grown by `margin` cells, clipped to the
