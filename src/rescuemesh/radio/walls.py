@@ -104,6 +104,57 @@ def count_walls_cells(grid: OccupancyGrid, r0: int, c0: int, r1: int, c1: int) -
     return _walls_on_line(_padded(grid), r0, c0, r1, c1)
 
 
+# The Bresenham line the wall walks share: `_line` sets it up, `_line_cell` gives its i-th cell.
+@numba.njit(inline="always")
+def _line(r0, c0, r1, c1):  # pragma: no cover - compiled
+    """(r0, c0, sign_r, sign_c, col_major, n, minor_span, steps) of the line from cell (r0, c0) to
+    (r1, c1): n steps along the major axis, the minor axis rounded half up."""
+    d_r = r1 - r0
+    d_c = c1 - c0
+    sign_r = (d_r > 0) - (d_r < 0)
+    sign_c = (d_c > 0) - (d_c < 0)
+    col_major = abs(d_c) >= abs(d_r)
+    n = abs(d_c) if col_major else abs(d_r)
+    minor_span = abs(d_r) if col_major else abs(d_c)
+    return r0, c0, sign_r, sign_c, col_major, n, minor_span, max(n, 1)
+
+
+@numba.njit(inline="always")
+def _line_cell(line, i):  # pragma: no cover - compiled
+    """(row, column) of cell i (0..n) of `line`."""
+    r0, c0, sign_r, sign_c, col_major, n, minor_span, steps = line
+    minor = (2 * i * minor_span + steps) // (2 * steps)
+    if col_major:
+        return r0 + sign_r * minor, c0 + sign_c * i
+    return r0 + sign_r * i, c0 + sign_c * minor
+
+
+@numba.njit(inline="always")
+def _price_cells(padded, codes, loss_by_code, line, first, last, walls, loss, run, in_run, before):  # pragma: no cover
+    """Walk cells first..last of `line`, counting walls entered (not at cell 0) and adding each wall's
+    dearest loss_by_code[code] to `loss` when it is left; the walk's state (walls, loss, run: the
+    dearest cell of the wall being crossed, in_run, before: whether the previous cell was occupied)
+    goes in and comes out, so a walk may be done in pieces."""
+    n_rows = padded.shape[0] - 2
+    n_cols = padded.shape[1] - 2
+    for i in range(first, last + 1):
+        r, c = _line_cell(line, i)
+        pr = min(max(r, -1), n_rows) + 1
+        pc = min(max(c, -1), n_cols) + 1
+        occupied = padded[pr, pc]
+        if occupied and not before and i > 0:
+            walls += 1
+            run = loss_by_code[codes[pr, pc]]
+            in_run = True
+        elif occupied and in_run:
+            run = max(run, loss_by_code[codes[pr, pc]])
+        elif not occupied and in_run:
+            loss += run
+            in_run = False
+        before = occupied
+    return walls, loss, run, in_run, before
+
+
 # Compiled when the module is imported (explicit signature), from numba's on-disk cache after the
 # first time, as sim/gridcast.py.
 @numba.njit("i8(b1[:, ::1], i8, i8, i8, i8)", cache=True, nogil=True)
@@ -112,24 +163,11 @@ def _walls_on_line(padded, r0, c0, r1, c1):  # pragma: no cover - compiled
     grid whose padded occupancy is `padded` (off the grid: the occupied border)."""
     n_rows = padded.shape[0] - 2
     n_cols = padded.shape[1] - 2
-    d_r = r1 - r0
-    d_c = c1 - c0
-    sign_r = (d_r > 0) - (d_r < 0)
-    sign_c = (d_c > 0) - (d_c < 0)
-    col_major = abs(d_c) >= abs(d_r)
-    n = abs(d_c) if col_major else abs(d_r)
-    minor_span = abs(d_r) if col_major else abs(d_c)
-    steps = max(n, 1)
+    line = _line(r0, c0, r1, c1)
     walls = 0
     before = False
-    for i in range(n + 1):
-        minor = (2 * i * minor_span + steps) // (2 * steps)
-        if col_major:
-            r = r0 + sign_r * minor
-            c = c0 + sign_c * i
-        else:
-            r = r0 + sign_r * i
-            c = c0 + sign_c * minor
+    for i in range(line[5] + 1):
+        r, c = _line_cell(line, i)
         occupied = padded[min(max(r, -1), n_rows) + 1, min(max(c, -1), n_cols) + 1]
         if occupied and not before and i > 0:
             walls += 1
@@ -166,42 +204,9 @@ def wall_loss_cells(grid: OccupancyGrid, r0: int, c0: int, r1: int, c1: int,
 @numba.njit("Tuple((i8, f8))(b1[:, ::1], u1[:, ::1], f8[::1], i8, i8, i8, i8)", cache=True, nogil=True)
 def _wall_loss_on_line(padded, codes, loss_by_code, r0, c0, r1, c1):  # pragma: no cover - compiled
     """As `_walls_on_line`, also summing each wall's dearest loss_by_code[code] over its cells."""
-    n_rows = padded.shape[0] - 2
-    n_cols = padded.shape[1] - 2
-    d_r = r1 - r0
-    d_c = c1 - c0
-    sign_r = (d_r > 0) - (d_r < 0)
-    sign_c = (d_c > 0) - (d_c < 0)
-    col_major = abs(d_c) >= abs(d_r)
-    n = abs(d_c) if col_major else abs(d_r)
-    minor_span = abs(d_r) if col_major else abs(d_c)
-    steps = max(n, 1)
-    walls = 0
-    loss = 0.0
-    run = 0.0  # the dearest cell of the wall being crossed
-    in_run = False
-    before = False
-    for i in range(n + 1):
-        minor = (2 * i * minor_span + steps) // (2 * steps)
-        if col_major:
-            r = r0 + sign_r * minor
-            c = c0 + sign_c * i
-        else:
-            r = r0 + sign_r * i
-            c = c0 + sign_c * minor
-        pr = min(max(r, -1), n_rows) + 1
-        pc = min(max(c, -1), n_cols) + 1
-        occupied = padded[pr, pc]
-        if occupied and not before and i > 0:
-            walls += 1
-            run = loss_by_code[codes[pr, pc]]
-            in_run = True
-        elif occupied and in_run:
-            run = max(run, loss_by_code[codes[pr, pc]])
-        elif not occupied and in_run:
-            loss += run
-            in_run = False
-        before = occupied
+    line = _line(r0, c0, r1, c1)
+    walls, loss, run, in_run, _ = _price_cells(padded, codes, loss_by_code, line, 0, line[5], 0, 0.0, 0.0, False,
+                                               False)
     return walls, loss + (run if in_run else 0.0)
 
 
@@ -232,58 +237,22 @@ def _wall_loss_skipping(padded, sat, codes, loss_by_code, r0, c0, r1, c1):  # pr
     n_cols = padded.shape[1] - 2
     if _box_free(sat, n_rows, n_cols, r0, c0, r1, c1):
         return 0, 0.0
-    d_r = r1 - r0
-    d_c = c1 - c0
-    sign_r = (d_r > 0) - (d_r < 0)
-    sign_c = (d_c > 0) - (d_c < 0)
-    col_major = abs(d_c) >= abs(d_r)
-    n = abs(d_c) if col_major else abs(d_r)
-    minor_span = abs(d_r) if col_major else abs(d_c)
-    steps = max(n, 1)
-    walls = 0
-    loss = 0.0
-    run = 0.0
-    in_run = False
-    before = False
+    line = _line(r0, c0, r1, c1)
+    n = line[5]
+    walls, loss, run, in_run, before = 0, 0.0, 0.0, False, False
     first = 0
     while first <= n:
         last = min(first + SKIP_BLOCK_CELLS - 1, n)
-        minor_a = (2 * first * minor_span + steps) // (2 * steps)
-        minor_b = (2 * last * minor_span + steps) // (2 * steps)
-        if col_major:
-            free = _box_free(sat, n_rows, n_cols, r0 + sign_r * minor_a, c0 + sign_c * first,
-                             r0 + sign_r * minor_b, c0 + sign_c * last)
-        else:
-            free = _box_free(sat, n_rows, n_cols, r0 + sign_r * first, c0 + sign_c * minor_a,
-                             r0 + sign_r * last, c0 + sign_c * minor_b)
-        if free:
+        ra, ca = _line_cell(line, first)
+        rb, cb = _line_cell(line, last)
+        if _box_free(sat, n_rows, n_cols, ra, ca, rb, cb):
             if in_run:
                 loss += run
                 in_run = False
             before = False
-            first = last + 1
-            continue
-        for i in range(first, last + 1):
-            minor = (2 * i * minor_span + steps) // (2 * steps)
-            if col_major:
-                r = r0 + sign_r * minor
-                c = c0 + sign_c * i
-            else:
-                r = r0 + sign_r * i
-                c = c0 + sign_c * minor
-            pr = min(max(r, -1), n_rows) + 1
-            pc = min(max(c, -1), n_cols) + 1
-            occupied = padded[pr, pc]
-            if occupied and not before and i > 0:
-                walls += 1
-                run = loss_by_code[codes[pr, pc]]
-                in_run = True
-            elif occupied and in_run:
-                run = max(run, loss_by_code[codes[pr, pc]])
-            elif not occupied and in_run:
-                loss += run
-                in_run = False
-            before = occupied
+        else:
+            walls, loss, run, in_run, before = _price_cells(padded, codes, loss_by_code, line, first, last, walls,
+                                                            loss, run, in_run, before)
         first = last + 1
     return walls, loss + (run if in_run else 0.0)
 
