@@ -43,6 +43,11 @@ def test_arange_and_interp_are_numpys_on_random_inputs():
         np.testing.assert_array_equal(kernels.interp(x, xp, fp), np.interp(x, xp, fp))
 
 
+def _extent(cm):
+    """(lower-left corner, width and height) of costmap `cm`'s map, in m."""
+    return np.array([cm.grid.origin_x, cm.grid.origin_y]), np.array(cm.shape[::-1]) * cm.resolution
+
+
 def _check_path(cm, points, s0, centre, radius):
     points = np.ascontiguousarray(points, dtype=float)
     cum = np.concatenate(([0.0], np.cumsum(np.hypot(*np.diff(points, axis=0).T))))
@@ -55,9 +60,7 @@ def _check_path(cm, points, s0, centre, radius):
 
 def test_the_path_check_is_sampling_then_the_lethal_check_on_random_paths(office_costmap):
     rng = np.random.default_rng(32)
-    g = office_costmap.grid
-    lo = np.array([g.origin_x, g.origin_y])
-    size = np.array(office_costmap.shape[::-1]) * office_costmap.resolution
+    lo, size = _extent(office_costmap)
     scan = lo + rng.uniform(0, 1, (300, 2)) * size
     blocked = 0
     for trial in range(300):
@@ -80,9 +83,7 @@ def _check_segment(cm, a, b, samples):
 
 def test_the_straight_extension_check_is_linspace_then_the_lethal_check(office_costmap):
     rng = np.random.default_rng(38)
-    g = office_costmap.grid
-    lo = np.array([g.origin_x, g.origin_y])
-    size = np.array(office_costmap.shape[::-1]) * office_costmap.resolution
+    lo, size = _extent(office_costmap)
     cm = office_costmap.with_obstacles(lo + rng.uniform(0, 1, (200, 2)) * size, 0.0)
     blocked = 0
     for trial in range(400):
@@ -99,8 +100,8 @@ def test_the_straight_extension_check_is_linspace_then_the_lethal_check(office_c
     for r, c in zip(rows[::7], cols[::7] + 11):
         if lethal[r, c - 11 : c].any():
             continue
-        y = g.origin_y + (r + 0.5) * office_costmap.resolution
-        edge = g.origin_x + c * office_costmap.resolution
+        y = lo[1] + (r + 0.5) * office_costmap.resolution
+        edge = lo[0] + c * office_costmap.resolution
         a, b = (edge - 0.45, y), (edge + 1e-9, y)
         assert office_costmap.world_to_cell(*b) == (r, c)
         samples = math.ceil(0.45 / (0.5 * office_costmap.resolution)) + 1
