@@ -139,3 +139,34 @@ def test_the_medium_holds_the_scalar_mean_power_of_every_pair_as_radios_move():
                     assert row[other.index] == channel.mean_rx_power_dbm(me, where[other.address]), (step, radio.address)
         for address in list(where)[step::3]:  # some radios move to other cells
             where[address] = (where[address][0] + 0.3, where[address][1] - 0.2)
+
+
+def _without_materials(grid):
+    from dataclasses import replace
+
+    return replace(grid, materials=None)
+
+
+@pytest.mark.parametrize("params", [{}, {"wall_fresnel_rays": 1}, {"shadowing_sigma_db": 0.0},
+                                    {"rx_antenna_height_m": 1.2, "far_path_loss_exponent": 3.0},
+                                    {"wall_fresnel_rays": 1, "no_materials": True}, {"no_map": True}])
+def test_budget_terms_are_the_python_budget_they_replaced(grid, params):
+    # the scalar link budget used to be Python beside the compiled row (two implementations of one
+    # budget); it now calls the row for one receiver, and must give every term the Python gave
+    from oracles.ble_budget import budget_terms
+
+    params = dict(params)
+    on = None if params.pop("no_map", False) else (_without_materials(grid) if params.pop("no_materials", False)
+                                                   else grid)
+    channel = BleChannel(on, seed=5).with_params(**params)
+    rng = np.random.default_rng(16)
+    a, b = _places(grid, rng, 600), _places(grid, rng, 600)
+    b[-100:] = a[-100:] + rng.normal(0.0, 0.3, (100, 2))
+    for p, q in zip(a.tolist(), b.tolist()):
+        lo, hi = sorted((channel._cell(p), channel._cell(q)))
+        got = channel._budget_terms(*lo, *hi)
+        want = budget_terms(channel, *lo, *hi)
+        assert got == want, (p, q, got, want)
+        assert type(got[2]) is int
+        budget = channel.link_budget(p, q)
+        assert (budget.distance_m, budget.walls, budget.mean_rx_power_dbm) == (want[0], want[2], want[4])

@@ -289,33 +289,17 @@ class BleChannel(ChannelModel):
         return LinkBudget(d, path_loss, walls, wall_loss, shadow, power, power - self._sens)
 
     def _budget_terms(self, ai: int, aj: int, bi: int, bj: int) -> tuple[float, float, int, float, float, float]:
-        """(distance, path loss, walls, shadow, mean power) between the centres of cells (ai, aj) <=
-        (bi, bj), with the shadow field read from a per-cell cache: a team's cells recur far more
-        often than their pairs, which change whenever either robot moves 5 cm (a convoy of 30 meets
-        some 360,000 new pairs: a tuple, not a frozen LinkBudget, for the cache's misses). The wall
-        loss comes last so that [4] stays the mean power. `d` is the 3D distance of the antennas."""
-        pa, pb = self._centre(ai, aj), self._centre(bi, bj)
-        p = self.params
-        d = math.hypot(pb[0] - pa[0], pb[1] - pa[1], self._dh)
-        dd = max(d, p.min_distance_m)
-        bp = self._bp
-        path_loss = p.reference_loss_db + self._near10 * math.log10(min(dd, bp)) \
-            + (self._far10 * math.log10(dd / bp) if dd > bp else 0.0)
-        # count_walls(grid, pa, pb) from the cells themselves: a centre lies half a cell from any
-        # edge, so mapping it back to a cell (as count_walls does, rows first) gives (aj, ai) again
-        if self.grid is None:
-            walls, wall_loss = 0, 0.0
-        elif self._rays == 1:
-            walls, wall_loss = wall_loss_cells(self.grid, aj, ai, bj, bi, self._loss_by_code)
-        else:
-            walls, wall_loss = wall_loss_fresnel(self.grid, pa, pb, self._loss_by_code, self._wavelength,
-                                                 self._dh, self._rays)
-        # ShadowField.link_db(pa, pb), from the cached unit values
-        shadow = self.shadow.sigma_db * (self._unit_at(ai, aj, pa) + self._unit_at(bi, bj, pb)) / _SQRT2 \
-            if self.shadow.sigma_db != 0.0 else 0.0
-        power = p.tx_power_dbm + p.tx_antenna_gain_dbi + p.rx_antenna_gain_dbi - path_loss \
-            - wall_loss - shadow
-        return d, path_loss, walls, shadow, power, wall_loss
+        """(distance, path loss, walls, shadow, mean power, wall loss) between the centres of cells
+        (ai, aj) <= (bi, bj): the compiled row (`_budget_row`) for one receiver, so the scalar and the
+        row are one implementation (the Python it replaced is the oracle in tests/oracles/ble_budget.py).
+        `d` is the 3D distance of the antennas."""
+        q = self._quantum
+        tcx, tcy = self._centre(ai, aj)
+        cells = np.array([[bi, bj]], dtype=np.int64)
+        centres = self._origin + (cells + 0.5) * q  # as the row computes them
+        terms = self._terms_row(ai, aj, tcx, tcy, cells, centres)[0]
+        return (float(self._distances(tcx, tcy, centres)[0]), float(terms[_PATH_LOSS]), int(terms[_WALLS]),
+                float(terms[_SHADOW]), float(terms[_POWER]), float(terms[_WALL_LOSS]))
 
     def _compute_mean_power_cells(self, ai: int, aj: int, bi: int, bj: int) -> float:
         return self._budget_terms(ai, aj, bi, bj)[4]
@@ -342,12 +326,9 @@ class BleChannel(ChannelModel):
 
     def mean_rx_power_row(self, tx_xy: Point, rx_xy: np.ndarray) -> np.ndarray:
         """`mean_rx_power_dbm(tx_xy, p)` for each p of `rx_xy` (shape (N, 2)), the same numbers, in one
-        compiled call (`_mean_power_row`) instead of one Python call per receiver: the same cells in
-        the same order (the lower cell first), the same shadow values (read per cell from the cache
-        `_unit_at` fills), the same arithmetic. The 3D distance comes from `math.hypot`, as the
-        scalar's does: numba has no three-argument hypot, and a square root of the sum of squares
-        differs from it in the last bit. The pair cache is neither read nor filled (a moving team
-        hardly meets a pair twice: see docs/radio.md)."""
+        compiled call (`_budget_row`, which the scalar calls for one receiver) instead of one Python
+        call per receiver. The pair cache is neither read nor filled (a moving team hardly meets a
+        pair twice: see docs/radio.md)."""
         if type(self).mean_rx_power_dbm is not BleChannel.mean_rx_power_dbm \
                 or type(self)._budget_terms is not BleChannel._budget_terms:
             return super().mean_rx_power_row(tx_xy, rx_xy)  # a subclass's own model: ask it per pair
@@ -359,10 +340,22 @@ class BleChannel(ChannelModel):
         origin = self._origin
         cells = np.floor((pts - origin) / q)
         centres = origin + (cells + 0.5) * q
-        cells = cells.astype(np.int64)
-        # |pb - pa| either way round: math.hypot takes the coordinates' magnitudes
-        d = np.fromiter(map(math.hypot, (centres[:, 0] - tcx).tolist(), (centres[:, 1] - tcy).tolist(),
-                            (self._dh,) * len(pts)), float, len(pts))
+        return self._terms_row(ai, aj, tcx, tcy, cells.astype(np.int64), centres)[:, _POWER].copy()
+
+    def _distances(self, tcx: float, tcy: float, centres: np.ndarray) -> np.ndarray:
+        """The 3D distances from the antenna over (tcx, tcy) to those over `centres`: math.hypot, as
+        the scalar had it (numba has no three-argument hypot; a square root of the sum of squares
+        differs from it in the last bit). |pb - pa| either way round: hypot takes magnitudes."""
+        n = len(centres)
+        return np.fromiter(map(math.hypot, (centres[:, 0] - tcx).tolist(), (centres[:, 1] - tcy).tolist(),
+                               (self._dh,) * n), float, n)
+
+    def _terms_row(self, ai: int, aj: int, tcx: float, tcy: float, cells: np.ndarray,
+                   centres: np.ndarray) -> np.ndarray:
+        """The link budget's terms (columns _PATH_LOSS, _WALLS, _WALL_LOSS, _SHADOW, _POWER) from the
+        cell (ai, aj), centre (tcx, tcy), to each cell of `cells` (int64 (N, 2), centres `centres`)."""
+        n = len(cells)
+        d = self._distances(tcx, tcy, centres)
         if self.shadow.sigma_db != 0.0:
             unit_tx = self._unit_at(ai, aj, (tcx, tcy))
             keys = list(map(tuple, cells.tolist()))
@@ -371,17 +364,17 @@ class BleChannel(ChannelModel):
             if None in units:  # cells not met before
                 unit_at, centre = self._unit_at, self._centre
                 units = [unit_at(c[0], c[1], centre(*c)) if u is None else u for u, c in zip(units, keys)]
-            unit_rx = np.array(units)
+            unit_rx = np.array(units, dtype=float)
         else:
-            unit_tx, unit_rx = 0.0, np.zeros(len(pts))
+            unit_tx, unit_rx = 0.0, np.zeros(n)
         if self._row_args is None:
             self._row_args = self._row_arguments()
-        out = np.empty(len(pts))
-        _mean_power_row(*self._row_args, ai, aj, tcx, tcy, unit_tx, cells, centres, d, unit_rx, out)
-        return out
+        terms = np.empty((n, _TERMS))
+        _budget_row(*self._row_args, ai, aj, tcx, tcy, unit_tx, cells, centres, d, unit_rx, terms)
+        return terms
 
     def _row_arguments(self) -> tuple:
-        """The map and the parameters `_mean_power_row` reads, packed once per channel."""
+        """The map and the parameters `_budget_row` reads, packed once per channel."""
         grid, p = self.grid, self.params
         if grid is None:
             mode, padded, sat, codes = _NO_WALLS, _EMPTY_PADDED, _EMPTY_SAT, _EMPTY_CODES
@@ -497,26 +490,32 @@ class BleChannel(ChannelModel):
         return f"BleChannel(grid={'yes' if self.grid is not None else 'None'}, seed={self.seed}, params={self.params})"
 
 
-# How `_mean_power_row` prices the walls (BleChannel._budget_terms's branches).
+# How `_budget_row` prices the walls (from the map's grid: none, one line of cells, line with the walls'
+# materials, a bundle of Fresnel rays).
 _NO_WALLS, _LINE, _LINE_TAGGED, _FRESNEL = 0, 1, 2, 3
 _EMPTY_PADDED = np.ones((3, 3), dtype=bool)
 _EMPTY_SAT = np.zeros((4, 4), dtype=np.int64)
 _EMPTY_CODES = np.zeros((3, 3), dtype=np.uint8)
+# The columns of `_budget_row`'s terms.
+_PATH_LOSS, _WALLS, _WALL_LOSS, _SHADOW, _POWER = range(5)
+_TERMS = 5
 
 
 @compiled("void(i8, i8, b1[:, ::1], i8[:, ::1], u1[:, ::1], f8[::1], f8[::1], i8, i8, f8, f8, f8, i8[:, ::1], "
-          "f8[:, ::1], f8[::1], f8[::1], f8[::1])")
-def _mean_power_row(mode, rays, padded, sat, codes, loss_by_code, numbers, ai, aj, tcx, tcy, unit_tx, cells, centres,
-                    d, unit_rx, out):  # pragma: no cover - compiled
-    """BleChannel._budget_terms's mean power from the cell (ai, aj) (centre (tcx, tcy), shadow field
-    unit_tx) to each cell i of `cells` (centre centres[i], 3D distance d[i], unit unit_rx[i]), the two
-    taken lower cell first: the same operations in the same order, so the same numbers. `numbers`:
-    BleChannel._row_arguments's."""
+          "f8[:, ::1], f8[::1], f8[::1], f8[:, ::1])")
+def _budget_row(mode, rays, padded, sat, codes, loss_by_code, numbers, ai, aj, tcx, tcy, unit_tx, cells, centres,
+                d, unit_rx, terms):  # pragma: no cover - compiled
+    """The link budget from the cell (ai, aj) (centre (tcx, tcy), shadow field unit_tx) to each cell i
+    of `cells` (centre centres[i], 3D distance d[i], unit unit_rx[i]), the two taken lower cell first
+    (so a pair gives the same numbers either way round): terms[i] gets the path loss, the walls, the
+    wall loss, the shadowing and the mean power (columns _PATH_LOSS .. _POWER). `numbers`:
+    BleChannel._row_arguments's. The one implementation of the budget (docs/radio.md): the scalar
+    calls it for one receiver."""
     ox, oy, res, wavelength, dh, min_d, bp, ref_loss, near10, far10, sigma, tx_dbm, g_tx, g_rx = (
         numbers[0], numbers[1], numbers[2], numbers[3], numbers[4], numbers[5], numbers[6], numbers[7], numbers[8],
         numbers[9], numbers[10], numbers[11], numbers[12], numbers[13])
     sqrt2 = math.sqrt(2.0)
-    for i in range(out.shape[0]):
+    for i in range(terms.shape[0]):
         bi = cells[i, 0]
         bj = cells[i, 1]
         if bi < ai or (bi == ai and bj < aj):  # (bi, bj) first
@@ -530,12 +529,16 @@ def _mean_power_row(mode, rays, padded, sat, codes, loss_by_code, numbers, ai, a
         dd = max(d[i], min_d)
         path_loss = ref_loss + near10 * math.log10(min(dd, bp)) + (far10 * math.log10(dd / bp) if dd > bp else 0.0)
         if mode == _NO_WALLS:
-            wall_loss = 0.0
+            walls, wall_loss = 0, 0.0
         elif mode == _FRESNEL:
-            wall_loss = _fresnel_wall_loss(padded, sat, codes, loss_by_code, ox, oy, res, pax, pay, pbx, pby,
-                                           wavelength, dh, rays)[1]
-        else:  # walls.wall_loss_cells(grid, aj, ai, bj, bi, loss_by_code): rows first
+            walls, wall_loss = _fresnel_wall_loss(padded, sat, codes, loss_by_code, ox, oy, res, pax, pay, pbx, pby,
+                                                  wavelength, dh, rays)
+        else:  # the cells' line, rows first; without materials every wall costs loss_by_code[0]
             walls, line_loss = _wall_loss_on_line(padded, codes, loss_by_code, lj, li, hj, hi)
             wall_loss = line_loss if mode == _LINE_TAGGED else walls * loss_by_code[0]
         shadow = sigma * (ua + ub) / sqrt2 if sigma != 0.0 else 0.0
-        out[i] = tx_dbm + g_tx + g_rx - path_loss - wall_loss - shadow
+        terms[i, _PATH_LOSS] = path_loss
+        terms[i, _WALLS] = walls
+        terms[i, _WALL_LOSS] = wall_loss
+        terms[i, _SHADOW] = shadow
+        terms[i, _POWER] = tx_dbm + g_tx + g_rx - path_loss - wall_loss - shadow
