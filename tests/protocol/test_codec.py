@@ -16,7 +16,8 @@ from rescuemesh.protocol import (
     MoveAround, Pose, ResultCode, Return, ShowCam, ShowScan, Stop, decode_frame, encode_frame)
 from rescuemesh.protocol.codec import (
     MAX_CONTROL_FRAME_BYTES, MAX_FORWARD_MESSAGE_BYTES, PAYLOAD_BYTES, FrameFlags, Header,
-    MAX_FORWARD_INNER_BYTES, MAX_MESSAGE_BYTES, decode_inner, encode_inner, max_frame_bytes)
+    MAX_FORWARD_INNER_BYTES, MAX_MESSAGE_BYTES, PROTOCOL_VERSION, decode_inner, encode_inner, max_frame_bytes,
+    parse_frame)
 from rescuemesh.protocol.errors import (
     IntegrityError, MalformedPayload, TruncatedFrame, UnknownMessageType, UnsupportedFeature,
     UnsupportedVersion)
@@ -452,3 +453,17 @@ def test_a_decoded_heartbeat_carries_the_capability_flags_it_announced(bits):
     assert message.capabilities == Capability(bits)
     assert [flag for flag in Capability if flag and flag in message.capabilities] == \
         [flag for flag in Capability if flag & bits]
+
+
+def test_decode_frame_remembers_a_result_and_never_an_error():
+    """The robots of a simulated team that hear one frame decode it once: the same bytes give the
+    same frozen objects; bytes that do not decode raise every time."""
+    header = Header(PROTOCOL_VERSION, FrameFlags.NONE, 3, 0, MessageType.HEARTBEAT, 1, BROADCAST, 77)
+    frame = encode_frame(header, Heartbeat(0, 3, 9, 0))
+    first = decode_frame(frame)
+    assert decode_frame(bytearray(frame)) is first  # an equal copy, any bytes-like: the one result
+    assert first == parse_frame(frame) and first is not parse_frame(frame)
+    broken = frame[:-1] + bytes((frame[-1] ^ 1,))
+    for _ in range(2):
+        with pytest.raises(IntegrityError):
+            decode_frame(broken)

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import rescuemesh.protocol
 
-ALLOWED = {"__future__", "struct", "zlib", "enum", "dataclasses", "collections", "typing", "abc", "math"}
+ALLOWED = {"__future__", "struct", "zlib", "enum", "dataclasses", "collections", "typing", "abc", "math",
+           "functools"}  # functools: lru_cache, the memory of codec.decode_frame
 PACKAGE = Path(rescuemesh.protocol.__file__).parent
 
 

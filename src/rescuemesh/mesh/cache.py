@@ -31,6 +31,7 @@ from __future__ import annotations
 import heapq
 import struct
 from array import array
+from functools import lru_cache
 
 #: Longest key the cache holds: a sealed team's epoch (4 bytes) and a 29-byte PDU less its
 #: integrity field (4) and the TTL nibble it keeps (the byte stays): 29 bytes, in 4 words.
@@ -43,6 +44,7 @@ FILTERABLE = 1
 WAITS = 2
 _KEY = struct.Struct(f"<{KEY_WORDS}q")
 _PAD = bytes(MAX_KEY_BYTES)
+_heappush, _heappop, _heapreplace = heapq.heappush, heapq.heappop, heapq.heapreplace
 
 
 def storage_words(size: int) -> int:
@@ -55,6 +57,7 @@ def offsets(size: int) -> tuple[int, int, int, int]:
     return META, META + size, META + 2 * size, META + 3 * size
 
 
+@lru_cache(maxsize=1024)  # a team's nodes file one frame's key each: one object, unpacked once
 def key_words(key: bytes) -> tuple[int, ...]:
     """`key` (at most MAX_KEY_BYTES bytes) as the KEY_WORDS int64 words a slot stores."""
     return _KEY.unpack((key + _PAD)[:MAX_KEY_BYTES])
@@ -119,9 +122,9 @@ class NetworkCache:
             stamp, slot = heap[0]
             current = words[stamp_at + slot]
             if current != stamp:  # refreshed since it was pushed
-                heapq.heapreplace(heap, (current, slot))
+                _heapreplace(heap, (current, slot))
             elif heard[slot] <= oldest:
-                heapq.heappop(heap)
+                _heappop(heap)
                 self._free_slot(slot)
             else:
                 break
@@ -132,28 +135,28 @@ class NetworkCache:
             heard[slot] = now
             words[stamp_at + slot] = clock
             return False
-        if len(key) > MAX_KEY_BYTES:
-            raise ValueError(f"a {len(key)}-byte cache key, at most {MAX_KEY_BYTES}")
+        size = len(key)
+        if size > MAX_KEY_BYTES:
+            raise ValueError(f"a {size}-byte cache key, at most {MAX_KEY_BYTES}")
         if not self._free:  # full: the least recently heard goes
             while True:
                 stamp, slot = heap[0]
                 current = words[stamp_at + slot]
                 if current == stamp:
                     break
-                heapq.heapreplace(heap, (current, slot))
-            heapq.heappop(heap)
+                _heapreplace(heap, (current, slot))
+            _heappop(heap)
             self._free_slot(slot)
         slot = self._free.pop()
         self._slot[key] = slot
-        words[self._len + slot] = len(key)
+        words[self._len + slot] = size
         words[stamp_at + slot] = clock
-        words[self._flags + slot] = FILTERABLE | (WAITS if key in self._waiting else 0)
+        words[self._flags + slot] = FILTERABLE | WAITS if key in self._waiting else FILTERABLE
         at = self._keys + KEY_WORDS * slot
-        for i, word in enumerate(key_words(key)):
-            words[at + i] = word
+        words[at], words[at + 1], words[at + 2], words[at + 3] = key_words(key)
         self._key_of[slot] = key
         heard[slot] = now
-        heapq.heappush(heap, (clock, slot))
+        _heappush(heap, (clock, slot))
         return True
 
     def set_waiting(self, key: bytes, waiting: bool) -> None:

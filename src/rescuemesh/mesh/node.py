@@ -81,6 +81,9 @@ _MAX_TX_EPOCHS = 64  # segmented frames whose epoch the node remembers (a transf
 _HEARTBEAT_BYTES = 17  # 6 header + active_command + init_ttl + epoch (4) + capabilities + 4 CRC
 _HEARTBEAT_INIT_TTL_BYTE = 7
 _SEGMENT_DATA_AT = 9  # header 6 + SegO|SegN 3
+_HEARTBEAT = int(MessageType.HEARTBEAT)
+_PLAIN, _SEGMENT = FrameKind.PLAIN, FrameKind.SEGMENT
+_ACCEPTED, _NEW_EPOCH = ReplayVerdict.ACCEPTED, ReplayVerdict.NEW_EPOCH
 
 
 @dataclass(frozen=True, slots=True)
@@ -144,12 +147,8 @@ class MeshNode:
             self._replay.may_open if self._replay is not None else None,
             self._reassembly_closed if self._replay is not None else None,
         )
-        # what a frame for us becomes, by kind
-        self._local = {
-            FrameKind.PLAIN: self._on_plain,
-            FrameKind.SEGMENT: self._on_segment,
-            FrameKind.SEGMENT_ACK: self._on_segment_ack,
-        }
+        # what a frame for us becomes, by kind (a PLAIN one: delivered, in receive)
+        self._local = {FrameKind.SEGMENT: self._on_segment, FrameKind.SEGMENT_ACK: self._on_segment_ack}
 
     @property
     def stats(self) -> MeshStats:
@@ -200,19 +199,21 @@ class MeshNode:
         False when it was dropped, and then the node has nothing new to send and no earlier timer
         (a transport may skip asking). Never raises for any bytes; ValueError only for a
         relay_delay_s that is negative or not finite."""
-        if not (math.isfinite(relay_delay_s) and relay_delay_s >= 0.0):
+        if not 0.0 <= relay_delay_s < math.inf:  # NaN compares False
             raise ValueError(f"relay_delay_s must be finite and >= 0, got {relay_delay_s!r}")
         stats = self._stats
         stats.received += 1
         data = bytes(data)
-        if len(data) > 3 and data[3] not in (self.address, BROADCAST) and data[0] & TTL_MASK < 2 \
+        address = self.address
+        if len(data) > 3 and data[3] != address and data[3] != BROADCAST and data[0] & TTL_MASK < 2 \
                 and not self._outbox.holds_relays():  # step 0
             stats.dropped_passing += 1
             return False
         read = self._reader.read(data)
         if read is None:
             return False
-        data, view, key, self._rx_epoch = read
+        data, view, key, epoch, derived = read
+        self._rx_epoch = epoch
         # a frame whose relayed copies still wait here is a duplicate even if its cache entry expired
         if not self.cache.check_and_add(key, now) or self._outbox.waiting(key):
             stats.dropped_cached += 1
@@ -221,35 +222,44 @@ class MeshNode:
                 stats.relays_suppressed += 1
                 stats.relay_copies_suppressed += cancelled
             return False
-        if self._replay is not None:
-            if view.kind is FrameKind.SEGMENT:
+        replay = self._replay
+        if replay is not None:
+            if view.kind is _SEGMENT:
                 seg_o, seg_n = read_segment_header(data)
                 variant = data[_SEGMENT_DATA_AT:-4] if seg_o == seg_n else b""
-                verdict = self._replay.accept_segment(view.src, self._rx_epoch, view.seq, seg_o,
-                                                      data[1] >> ATTEMPT_SHIFT, variant)
+                verdict = replay.accept_segment(view.src, epoch, view.seq, seg_o, data[1] >> ATTEMPT_SHIFT, variant)
             else:
-                verdict = self._replay.accept(view.src, self._rx_epoch, view.seq, data[1] >> ATTEMPT_SHIFT)
-            if not verdict.accepted:
-                stats.dropped_replay += 1
-                return False
-            if verdict is ReplayVerdict.NEW_EPOCH:
+                verdict = replay.accept(view.src, epoch, view.seq, data[1] >> ATTEMPT_SHIFT)
+            if verdict is not _ACCEPTED:
+                if verdict is not _NEW_EPOCH:
+                    stats.dropped_replay += 1
+                    return False
                 # its old epoch's frames no longer open here: none is recognised unopened any more
                 self.cache.hold_all()
                 self._reader.forget()
                 self._receiver.forget_source(view.src)
                 self._events.append(PeerRestarted(view.src, self._rx_epoch, now))
         stats.accepted += 1
-        hops, found = self._neighbours.heard(view.src, view.ttl, now, rssi_dbm, _announced_init_ttl(data, view))
+        beat = view.msg_type == _HEARTBEAT
+        hops, found = self._neighbours.heard(view.src, view.ttl, now, rssi_dbm,
+                                             _announced_init_ttl(data, view) if beat else None)
         if found is not None:
             self._events.append(found)
-        if view.dst == self.address or view.dst == BROADCAST:
-            try:
-                self._local[view.kind](data, view, hops, rssi_dbm if hops == 1 else None, now)
-            except FrameError:
-                stats.dropped_malformed += 1
-        if view.dst != self.address and self.config.relay:
-            beat = view.msg_type == MessageType.HEARTBEAT  # no hurry: wait longer, hear others relay it
-            self._relay(data, view, now + relay_delay_s * (self.config.heartbeat_relay_delay_scale if beat else 1), key)
+        dst = view.dst
+        if dst == address or dst == BROADCAST:
+            kind = view.kind
+            if kind is _PLAIN:  # most frames for us: _deliver, inline
+                stats.delivered += 1
+                self._events.append(FrameDelivered(data, view.src, hops, rssi_dbm if hops == 1 else None, now))
+            else:
+                try:
+                    self._local[kind](data, view, hops, rssi_dbm if hops == 1 else None, now)
+                except FrameError:
+                    stats.dropped_malformed += 1
+        if dst != address and self.config.relay:
+            # a Heartbeat is in no hurry: wait longer, hear others relay it
+            self._relay(data, view, now + relay_delay_s * (self.config.heartbeat_relay_delay_scale if beat else 1), key,
+                        derived)
         return True
 
     # --- the aioquic loop ------------------------------------------------------------------------
@@ -313,32 +323,33 @@ class MeshNode:
         slack = self.config.unicast_ttl_slack + resend + sparse
         return min(view.ttl, table.hops_to(view.dst) + slack)
 
-    def _relay(self, data: bytes, view: FrameView, due: float, key: bytes) -> None:
+    def _relay(self, data: bytes, view: FrameView, due: float, key: bytes, derived: list) -> None:
+        """`derived`: the Read's cell; it keeps the relayed copy (one per frame read, for all readers)."""
         if view.ttl < 2:
             self._stats.dropped_ttl += 1
             return
-        segment = segments = None
-        if view.kind is FrameKind.SEGMENT:
-            segment, last = read_segment_header(data)
-            segments = last + 1
-        ttl = view.ttl - 1
+        relayed = derived[0]
+        if relayed is None:
+            segment = segments = None
+            if view.kind is _SEGMENT:
+                segment, last = read_segment_header(data)
+                segments = last + 1
+            ttl = view.ttl - 1
+            relayed = derived[0] = Transmission(self._seal(with_ttl(data, ttl), self._rx_epoch), view.src, view.dst,
+                                                view.msg_type, view.seq, ttl, True, segment, segments, key)
         self._stats.relayed += 1
-        relayed = Transmission(self._seal(with_ttl(data, ttl), self._rx_epoch), view.src, view.dst, view.msg_type,
-                               view.seq, ttl, True, segment, segments, key)
         interval = self.config.relay_retransmit_interval_s
         # Mesh Profile 4.2.20 Relay Retransmit, for control frames. A segment is relayed once (block acks
         # repair it; 3 copies cut 2-hop bulk fivefold), a Heartbeat too (the next comes a period later).
-        once = segment is not None or view.msg_type == MessageType.HEARTBEAT
+        unsegmented = relayed.segment is None
+        once = not unsegmented or view.msg_type == _HEARTBEAT
         copies = 1 if once else 1 + self.config.relay_retransmit_count
         for k in range(copies):
-            self._outbox.push(due + k * interval, relayed, key, ttl, paced=segment is None)
+            self._outbox.push(due + k * interval, relayed, key, relayed.ttl, paced=unsegmented)
 
     def _deliver(self, frame: bytes, src: int, hops: int, rssi_dbm: float | None, now: float) -> None:
         self._stats.delivered += 1
         self._events.append(FrameDelivered(frame, src, hops, rssi_dbm, now))
-
-    def _on_plain(self, data: bytes, view: FrameView, hops: int, rssi: float | None, now: float) -> None:
-        self._deliver(data, view.src, hops, rssi, now)
 
     def _on_segment(self, data: bytes, view: FrameView, hops: int, rssi: float | None, now: float) -> None:
         self._receiver.on_segment(data, view, hops, rssi, now)

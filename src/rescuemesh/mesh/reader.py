@@ -9,6 +9,14 @@ policy, replay decisions, radios or clocks (the node owns those).
 # heard are such copies, and AES-CCM and parsing were a third of the receive path. Zephyr's mesh
 # stack likewise checks its message cache before it decrypts a network PDU. Only frames that opened
 # and parsed are remembered, so a bad frame is counted every time it is heard.
+#
+# With a sealer that remembers (FrameSealer(remember=N), one per simulated team), the results live
+# in the sealer's `reads` instead, by (bytes heard, epoch), and serve every node with that sealer:
+# of the 29 robots that hear a frame in a convoy of 30, the first opens and parses it, the others
+# find it there. The epoch a node asks for is its own (the announced one for a Heartbeat, else the
+# source's epoch in its replay window, then the next), asked in the same order as it would open
+# them, so each node reaches the result it would have computed: an entry exists only for bytes that
+# opened under that key and that epoch, and a node that knows another epoch looks up another entry.
 
 from __future__ import annotations
 
@@ -24,8 +32,10 @@ MAX_OPENED_FRAMES = 256
 #: FrameError subclass -> the counter it increments (any other: dropped_malformed).
 _DROP_COUNTER: dict[type, str] = {IntegrityError: "dropped_corrupt"}
 
-#: What a frame read gives: its CRC frame, header, network cache key and the epoch it opened under.
-Read = tuple[bytes, FrameView, bytes, int]
+#: What a frame read gives: its CRC frame, header, network cache key, the epoch it opened under, and
+#: a one-item list the node may fill with something it derives from those alone (the copy a relay
+#: sends: the same for every node that reads the frame, so one node computes it for the team).
+Read = tuple[bytes, FrameView, bytes, int, list]
 
 
 class FrameReader:
@@ -42,6 +52,9 @@ class FrameReader:
     def read(self, heard: bytes) -> Read | None:
         """(CRC frame, header, cache key, epoch) of `heard`, or None (counted) for a frame that does
         not open, is malformed or is our own. The cache key starts with the epoch when sealed."""
+        sealer = self.sealer
+        if sealer is not None and sealer.reads is not None:
+            return self._read_shared(heard, sealer.reads)
         known = self._recent.get(heard)
         if known is not None:
             return known
@@ -62,10 +75,62 @@ class FrameReader:
             stats.dropped_own += 1
             return None
         key = cache_key(data, None if self.sealer is None else epoch)
-        read = self._recent[heard] = (data, view, key, epoch)
+        read = self._recent[heard] = (data, view, key, epoch, [None])
         if len(self._recent) > MAX_OPENED_FRAMES:
             del self._recent[next(iter(self._recent))]
         return read
+
+    def _read_shared(self, heard: bytes, reads: dict) -> Read | None:
+        """read() through the sealer's shared results (module comment): the same checks, counters
+        and result as _open and the rest of read(), a frame opened and parsed once per team."""
+        stats = self.stats
+        if len(heard) < FRAME_OVERHEAD_BYTES or not heard[0] & AUTH_BIT:
+            stats.dropped_unauthenticated += 1
+            return None
+        src = heard[2]
+        if src == self.address:
+            stats.dropped_own += 1
+            return None
+        announced = self.sealer.heartbeat_epoch(heard)
+        if announced is not None:
+            read = reads.get((heard, announced))
+            return read if read is not None else self._open_shared(heard, (announced,), reads)
+        known = self._replay.epoch_of(src)
+        if known is None:
+            stats.dropped_unknown_epoch += 1
+            return None
+        read = reads.get((heard, known))
+        if read is not None:
+            return read
+        return self._open_shared(heard, (known, (known + 1) & MAX_EPOCH), reads)  # the source may have wrapped
+
+    def _open_shared(self, heard: bytes, candidates: tuple[int, ...], reads: dict) -> Read | None:
+        """Open `heard` under each candidate epoch in turn (one that opened before is found in
+        `reads`), parse it, and keep the result in `reads`; None (counted) as read() says."""
+        sealer, stats = self.sealer, self.stats
+        for epoch in candidates:
+            read = reads.get((heard, epoch))
+            if read is not None:
+                return read
+            try:
+                data = sealer.open(heard, epoch)
+            except FrameError:
+                continue
+            try:
+                view = read_on_air(data)
+            except FrameError as exc:
+                name = _DROP_COUNTER.get(type(exc), "dropped_malformed")
+                setattr(stats, name, getattr(stats, name) + 1)
+                return None
+            if view.src == self.address:  # unreachable: the source is in the clear, checked above
+                stats.dropped_own += 1
+                return None
+            read = reads[(heard, epoch)] = (data, view, cache_key(data, epoch), epoch, [None])
+            if len(reads) > sealer.remember:
+                del reads[next(iter(reads))]
+            return read
+        stats.dropped_forged += 1
+        return None
 
     def forget(self) -> None:
         """Forget the frames read so far: a source's epoch moved on, and a frame of its old epoch

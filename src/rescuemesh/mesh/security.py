@@ -120,9 +120,14 @@ class FrameSealer:
 
     `remember`: how many recent seal and open results to keep, by (bytes, epoch) (0: none). Both
     are pure functions of their arguments, so a result remembered is the result computed; a
-    simulated team shares one sealer, and the 20-odd robots that hear one frame open it once."""
+    simulated team shares one sealer, and the 20-odd robots that hear one frame open it once.
 
-    __slots__ = ("_encrypt", "_decrypt", "_remember", "_sealed", "_opened")
+    `reads` (None when `remember` is 0): the mesh reader's results for frames opened under this
+    sealer's key, by (bytes heard, epoch), shared like the rest and bounded by `remember` (the
+    reader fills it: reader.FrameReader). Only frames that opened are in it, and an entry answers
+    only for the epoch it opened under; another key is another sealer, with a memory of its own."""
+
+    __slots__ = ("_encrypt", "_decrypt", "_remember", "_sealed", "_opened", "reads")
 
     def __init__(self, frame_key: bytes, *, remember: int = 0) -> None:
         if not isinstance(frame_key, (bytes, bytearray)) or len(frame_key) != FRAME_KEY_BYTES:
@@ -135,6 +140,12 @@ class FrameSealer:
         self._remember = remember
         self._sealed: dict[tuple[bytes, int], bytes] = {}
         self._opened: dict[tuple[bytes, int], bytes] = {}
+        self.reads: dict[tuple[bytes, int], tuple] | None = {} if remember else None
+
+    @property
+    def remember(self) -> int:
+        """How many results of each kind this sealer keeps (0: none)."""
+        return self._remember
 
     @classmethod
     def from_team_key(cls, team_key: bytes, *, remember: int = 0) -> FrameSealer:
