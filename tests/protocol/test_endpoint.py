@@ -528,3 +528,14 @@ def test_a_final_report_can_be_repeated_under_a_fresh_number_and_counts_once():
     for frame in frames:
         a.receive(frame, 0.6)
     assert [e.result for e in drain(a)] == [R.ACCEPTED, R.CANCELLED] and a.stats.confirms_unmatched == 2
+
+
+def test_heartbeat_received_is_the_dataclass_built_field_by_field():
+    """The endpoint builds a HeartbeatReceived straight into its slots (events.heartbeat_received)."""
+    import dataclasses
+    from rescuemesh.protocol.events import HeartbeatReceived, heartbeat_received
+    built = heartbeat_received(4, 16, 2.5, 3, 5)
+    assert type(built) is HeartbeatReceived and built == HeartbeatReceived(4, 16, 2.5, 3, 5)
+    assert dataclasses.astuple(built) == (4, 16, 2.5, 3, 5)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        built.hops = 1

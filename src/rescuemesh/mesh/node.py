@@ -63,7 +63,7 @@ from rescuemesh.protocol.messages import SegmentAck
 
 from .cache import NetworkCache
 from .config import MeshConfig
-from .events import FrameDelivered, MeshEvent, PeerRestarted
+from .events import MeshEvent, PeerRestarted, frame_delivered
 from .frames import ATTEMPT_SHIFT, TTL_MASK, FrameKind, FrameView, cache_key, read_logical, with_ttl
 from .neighbours import NeighbourInfo, NeighbourTable
 from .outbox import Outbox
@@ -250,7 +250,7 @@ class MeshNode:
             kind = view.kind
             if kind is _PLAIN:  # most frames for us: _deliver, inline
                 stats.delivered += 1
-                self._events.append(FrameDelivered(data, view.src, hops, rssi_dbm if hops == 1 else None, now))
+                self._events.append(frame_delivered(data, view.src, hops, rssi_dbm if hops == 1 else None, now))
             else:
                 try:
                     self._local[kind](data, view, hops, rssi_dbm if hops == 1 else None, now)
@@ -349,7 +349,7 @@ class MeshNode:
 
     def _deliver(self, frame: bytes, src: int, hops: int, rssi_dbm: float | None, now: float) -> None:
         self._stats.delivered += 1
-        self._events.append(FrameDelivered(frame, src, hops, rssi_dbm, now))
+        self._events.append(frame_delivered(frame, src, hops, rssi_dbm, now))
 
     def _on_segment(self, data: bytes, view: FrameView, hops: int, rssi: float | None, now: float) -> None:
         self._receiver.on_segment(data, view, hops, rssi, now)

@@ -152,7 +152,7 @@ class ReplayWindow:
             return ReplayVerdict.OLD_EPOCH
         if seq <= source.highest - self.window:
             return ReplayVerdict.TOO_OLD
-        bit = 1 << min(send, MAX_SENDS_TRACKED - 1)
+        bit = 1 << (send if send < MAX_SENDS_TRACKED else MAX_SENDS_TRACKED - 1)
         mask = source.seen.get(seq, 0)
         if mask & bit:
             return ReplayVerdict.REPLAY

@@ -103,13 +103,16 @@ class NetworkStack:
     # --- internals -----------------------------------------------------------------------------
 
     def _drain(self) -> None:
-        while (event := self.node.next_event()) is not None:
-            self._on_event[type(event)](event)
+        next_event, on_event = self.node.next_event, self._on_event
+        while (event := next_event()) is not None:
+            on_event[type(event)](event)
 
     def _deliver(self, event: FrameDelivered) -> None:
-        self.hops_histogram[event.hops] += 1
-        self._note_hops(event.src, event.hops)
-        self.endpoint.receive(event.data, event.now, event.hops)
+        hops = event.hops
+        self.hops_histogram[hops] += 1
+        if self._path_hops.get(event.src) != hops:  # _note_hops, inline: a frame per robot heard
+            self._note_hops(event.src, hops)
+        self.endpoint.receive(event.data, event.now, hops)
 
     def _number(self) -> tuple[int, int]:
         seq = self.endpoint.allocate_seq()

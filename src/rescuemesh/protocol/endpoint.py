@@ -18,8 +18,8 @@ from .events import (
     DeliveryFailed,
     EndpointEvent,
     FrameRejected,
-    HeartbeatReceived,
     PoseUpdateReceived,
+    heartbeat_received,
 )
 from .messages import (
     COMMAND_TYPES,
@@ -377,7 +377,7 @@ class Endpoint:
         )
 
     def _on_heartbeat(self, header: Header, message: Heartbeat, now: float) -> None:
-        self._events.append(HeartbeatReceived(header.src, message.active_command, now, self._hops, message.capabilities))
+        self._events.append(heartbeat_received(header.src, message.active_command, now, self._hops, message.capabilities))
 
     def _on_data(self, header: Header, message: Data, now: float) -> None:
         if self._is_new(header, message, now):
