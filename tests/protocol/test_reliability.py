@@ -188,3 +188,26 @@ def test_report_with_the_wrong_type_is_refused():
     with pytest.raises(ValueError):
         cache.check_report(1, 7, MessageType.STOP, R.ACCEPTED)
     cache.check_report(1, 8, MessageType.STOP, R.DONE)  # unknown frame: not checked
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_next_deadline_kept_between_changes_is_the_earliest_pending(seed):
+    """The queue keeps its earliest deadline between changes; it is always the minimum over the
+    frames pending, after any mix of sends (a seq reused included), Confirms, timeouts and cancels."""
+    import random
+    rng = random.Random(seed)
+    queue = RetransmissionQueue(ReliabilityConfig())
+    now = 0.0
+    for _ in range(400):
+        now += rng.choice((0.0, 0.05, 0.2))
+        step, dst, seq = rng.random(), rng.randrange(2, 5), rng.randrange(0, 8)
+        if step < 0.45:
+            queue.add(dst, seq, None, Stop(), now, rng.choice((None, 0.1, 0.7)))
+        elif step < 0.75:
+            queue.acknowledge(dst, seq, MessageType.STOP)
+        elif step < 0.95:
+            queue.expire(now)
+        else:
+            queue.cancel(rng.choice((None, dst)))
+        frames = [queue._pending[key] for key in list(queue._pending)]
+        assert queue.next_deadline() == min((f.deadline_s for f in frames), default=None)

@@ -39,9 +39,15 @@ reconnect"). Owns the table and the lost/found rule; must not know frames, relay
 # heartbeats due at t + 1, t + 2 and t + 3 all missed, with half a period of grace for jitter and
 # relay delay on the last one. next_deadline() is the earliest of these times, so the node's timer
 # fires exactly then; is_reachable(address, now) applies the same rule without waiting for it.
+#
+# The deadlines are kept in a heap of (deadline, address), pushed whenever an entry's deadline moves
+# (heard, lost); an item that is no longer its entry's deadline is dropped when it reaches the top.
+# A team of 30 hears a thousand frames a second and the node asks for its timer after each: a scan of
+# every entry whenever the earliest one was heard again cost more than the rest of the table's work.
 
 from __future__ import annotations
 
+import heapq
 from dataclasses import dataclass
 
 from .config import MeshConfig
@@ -80,8 +86,7 @@ class NeighbourTable:
         self._lost_s = config.lost_after_seconds
         self._expiry_s = config.neighbour_expiry_s
         self._entries: dict[int, _Entry] = {}
-        self._next: float | None = None
-        self._dirty = False
+        self._deadlines: list[tuple[float, int]] = []  # (deadline, address), lazily cleaned (module comment)
 
     def __len__(self) -> int:
         return len(self._entries)
@@ -109,41 +114,40 @@ class NeighbourTable:
         if not beat and entry is not None and entry.beat_hops is not None:
             hops = min(hops, entry.beat_hops)  # the frame may have left with less than init_ttl
         rssi = rssi_dbm if hops == 1 else None
-        self._touch(entry, now)
         if entry is None:
             self._entries[address] = _Entry(hops, rssi, now, False, init_ttl, hops if beat else None)
+            self._push(now + self._lost_s, address)
             return hops, NeighbourFound(address, hops, now)
         found = NeighbourFound(address, hops, now) if entry.lost else None
         entry.hops, entry.rssi_dbm, entry.last_heard_s, entry.lost = hops, rssi, now, False
         entry.init_ttl = init_ttl
         if beat:
             entry.beat_hops = hops
+        self._push(now + self._lost_s, address)
         return hops, found
 
-    def _touch(self, entry: "_Entry | None", now: float) -> None:
-        """Keep the cached next deadline valid when `entry` (None: a new one) is heard at `now`.
-        Hearing only moves an alive entry's deadline later: the minimum changes only when the entry
-        that held it is heard, when a lost one is (its deadline switches from expiry to loss), or
-        when a new entry's deadline (now + lost_s) comes before it. A team of 30
-        hears a thousand frames a second; rescanning every entry on each cost more than the rest
-        of the node's work."""
-        if self._dirty:
-            return
-        if entry is None:
-            self._dirty = self._next is None or now + self._lost_s < self._next
-        elif entry.lost or entry.last_heard_s + self._lost_s <= self._next:
-            self._dirty = True
+    def _push(self, deadline: float, address: int) -> None:
+        """`address`'s entry (already updated) has a new deadline."""
+        if len(self._deadlines) > 4 * len(self._entries) + 64:  # next_deadline() not asked for a while
+            self._rebuild()
+        heapq.heappush(self._deadlines, (deadline, address))
 
     def next_deadline(self) -> float | None:
         """Earliest time in s at which an entry is lost or forgotten, or None."""
-        if self._dirty:
-            lost_s, expiry_s = self._lost_s, self._expiry_s
-            self._next = min(
-                (e.last_heard_s + (expiry_s if e.lost else lost_s) for e in self._entries.values()),
-                default=None,
-            )
-            self._dirty = False
-        return self._next
+        deadlines, entries = self._deadlines, self._entries
+        while deadlines:
+            deadline, address = deadlines[0]
+            entry = entries.get(address)
+            if entry is not None and deadline == entry.last_heard_s + (self._expiry_s if entry.lost else self._lost_s):
+                return deadline
+            heapq.heappop(deadlines)  # that entry was heard since, lost or forgotten
+        return None
+
+    def _rebuild(self) -> None:
+        """The heap of deadlines with one item per entry."""
+        lost_s, expiry_s = self._lost_s, self._expiry_s
+        self._deadlines = [(e.last_heard_s + (expiry_s if e.lost else lost_s), a) for a, e in self._entries.items()]
+        heapq.heapify(self._deadlines)
 
     def expire(self, now: float) -> list[NeighbourLost]:
         """Apply every deadline passed by `now`: mark lost (one event each) and forget expired."""
@@ -156,9 +160,9 @@ class NeighbourTable:
             if not entry.lost and now >= entry.last_heard_s + self._lost_s:
                 entry.lost = True
                 events.append(NeighbourLost(address, entry.last_heard_s, now))
+                self._push(entry.last_heard_s + self._expiry_s, address)
             if now >= entry.last_heard_s + self._expiry_s:
                 del self._entries[address]
-        self._dirty = True
         return events
 
     def hops_to(self, address: int) -> int | None:

@@ -276,9 +276,8 @@ class MeshNode:
 
     def get_timer(self) -> float | None:
         """Earliest time in s at which handle_timer() or transmissions() has work, or None."""
-        best = None
-        for t in (self._outbox.next_due(), self._sender.next_timer(), self._receiver.next_timer(),
-                  self._neighbours.next_deadline()):
+        best = self._outbox.next_due()
+        for t in (self._sender.next_timer(), self._receiver.next_timer(), self._neighbours.next_deadline()):
             if t is not None and (best is None or t < best):
                 best = t
         return best

@@ -148,6 +148,10 @@ class RetransmissionQueue:
     def __init__(self, config: ReliabilityConfig) -> None:
         self._config = config
         self._pending: dict[tuple[int, int], PendingFrame] = {}
+        # the earliest deadline, kept between changes: the endpoint's timer is asked after every
+        # frame a robot hears, and the queue changes far less often (None: ask the frames again)
+        self._next: float | None = None
+        self._known = True
 
     def __len__(self) -> int:
         return len(self._pending)
@@ -161,6 +165,7 @@ class RetransmissionQueue:
         for each Confirm."""
         timeout = self._config.ack_timeout_s if timeout_s is None else timeout_s
         frame = PendingFrame(dst, seq, header, message, 1, now, now, now + timeout, timeout)
+        self._known = False  # a frame replaced under the same (dst, seq) may have held the earliest
         self._pending[(dst, seq)] = frame
         return frame
 
@@ -173,17 +178,20 @@ class RetransmissionQueue:
         if frame is None or frame.message.TYPE != ref_type:
             return None
         del self._pending[(src, ref_seq)]
+        self._known = False
         return frame
 
     def next_deadline(self) -> float | None:
         """Earliest deadline in s, or None when nothing is pending."""
-        if not self._pending:
-            return None
-        return min(frame.deadline_s for frame in self._pending.values())
+        if not self._known:
+            self._next = min((frame.deadline_s for frame in self._pending.values()), default=None)
+            self._known = True
+        return self._next
 
     def expire(self, now: float) -> list[tuple[TimeoutAction, PendingFrame]]:
         """Apply every deadline passed by `now`: resend (frame updated in place) or give up (removed)."""
         actions = []
+        self._known = False
         max_sends = self._config.max_sends
         for key, frame in list(self._pending.items()):
             if frame.deadline_s > now:
@@ -201,6 +209,7 @@ class RetransmissionQueue:
     def cancel(self, dst: int | None = None) -> list[PendingFrame]:
         """Stop retrying the frames to `dst` (all frames if None); return them."""
         keys = [key for key in self._pending if dst is None or key[0] == dst]
+        self._known = False
         return [self._pending.pop(key) for key in keys]
 
 
