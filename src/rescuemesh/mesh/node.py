@@ -23,8 +23,8 @@ the relay decision and the outbox; must not know radios, clocks, random numbers 
 #      Mesh Profile 4.2.20: a receiver's cache drops the copies it already has);
 #      TTL < 2 -> dropped_ttl.
 #
-# Steps 1-2 (reader.py) remember the frames they read recently by the bytes heard, so a copy that
-# is the same bytes (Relay Retransmit copies, two relays re-sealing one frame) skips AES-CCM.
+# Steps 1-2 (reader.py) remember the frames read recently by the bytes heard (per team where the
+# sealer remembers), so a copy that is the same bytes skips AES-CCM; the relayed copy is built once.
 #
 # Relay suppression (counter-based, Ni et al. 1999; outbox.py): step-3 hits on a frame whose copies
 # wait in the outbox are counted; at relay_suppress_after they are cancelled (not those handed out).
