@@ -154,11 +154,14 @@ def test_scan_points_are_the_oracles_on_random_sweeps():
 def _check_coarse(cost, k, window, weight=8.0):
     r0, r1, c0, c1 = window
     rows, cols = (r1 - r0, c1 - c0) if k > 1 else cost.shape
-    lethal, step = kernels.coarse_step_costs(cost, k, rows, cols, np.float32(weight))
+    # into a larger Fortran-ordered array holding an older graph's costs, as a planner's graph may
+    step = np.asfortranarray(np.random.default_rng(rows * cols).uniform(0.0, 9.0, (rows + 5, cols + 16)))
+    lethal = kernels.coarse_step_costs(cost, k, rows, cols, np.float32(weight), step)
     want_lethal, want_step = ref.graph_costs(cost, k, window, weight)
     assert want_step.dtype == np.float32  # numpy's arithmetic was float32: the kernel's too
     np.testing.assert_array_equal(lethal, want_lethal)
-    np.testing.assert_array_equal(step, want_step.astype(np.float64))  # what MCP_Geometric reads
+    np.testing.assert_array_equal(step[:rows, :cols], want_step.astype(np.float64))  # what MCP_Geometric reads
+    assert np.isinf(step[rows:]).all() and np.isinf(step[:, cols:]).all()  # beyond the window: impassable
 
 
 def test_the_coarse_grid_is_the_oracles_on_random_windows(office_costmap):
@@ -282,10 +285,10 @@ def recorded():
             rec["paths"].append((self, np.array(points), float(s0), kw["clear_center"], kw["clear_radius"]))
         return any_lethal_along(self, points, cum, s0, s1, step, **kw)
 
-    def record_coarse(self, cost, window):
+    def record_coarse(self, cost, window, *graph):
         if len(rec["coarse"]) < 60:
             rec["coarse"].append((cost.copy(), self.downsample, window))
-        return graph_over(self, cost, window)
+        return graph_over(self, cost, window, *graph)
 
     def record_shortcut(costmap, points, **kw):
         if len(rec["shortcuts"]) < 200:

@@ -197,14 +197,16 @@ def path_any_lethal(points, cum, s0, s1, step, origin_x, origin_y, resolution, r
 _LETHAL32 = np.float32(1.0)  # costmap.LETHAL, as the float32 costs hold it
 
 
-@compiled_on_first_call("Tuple((b1[:, ::1], f8[:, ::1]))(f4[:, :], i8, i8, i8, f4)")
-def coarse_step_costs(cost, k, rows, cols, weight):
+@compiled_on_first_call("b1[:, ::1](f4[:, :], i8, i8, i8, f4, f8[::1, :])")
+def coarse_step_costs(cost, k, rows, cols, weight, step):
     """The planner's coarse grid of (`rows`, `cols`) blocks of k x k cells of `cost` (float32 in
-    [0, 1]; a block's cells past cost's edge count as lethal): (lethal: the block's highest cost is
-    LETHAL; the cost of a step into it, 1 + weight * that highest cost in float32, inf when lethal)."""
+    [0, 1]; a block's cells past cost's edge count as lethal): returns lethal (the block's highest
+    cost is LETHAL) and writes into `step[:rows, :cols]` the cost of a step into each block, 1 +
+    weight * that highest cost in float32, inf when lethal; the rest of `step` (at least rows x
+    cols, Fortran order: the array MCP_Geometric reads) becomes inf (impassable)."""
     h, w = cost.shape
     lethal = np.empty((rows, cols), dtype=np.bool_)
-    step = np.empty((rows, cols))
+    step[:, :] = math.inf
     one = np.float32(1.0)
     for r in range(rows):
         for c in range(cols):
@@ -221,7 +223,7 @@ def coarse_step_costs(cost, k, rows, cols, weight):
             is_lethal = top >= _LETHAL32
             lethal[r, c] = is_lethal
             step[r, c] = math.inf if is_lethal else np.float64(one + weight * top)
-    return lethal, step
+    return lethal
 
 
 @compiled()  # no signature: compiled into its callers, not loaded at import
