@@ -93,7 +93,7 @@ def test_the_kernels_are_the_oracles_on_scans_and_paths_recorded_from_a_follow_r
     from rescuemesh.scenarios.runner import run_scenario
 
     recorded = {"scans": [], "velocity": []}
-    compute = controller.compute_velocity
+    compute = controller.command_on_part
     with_obstacles = Costmap.with_obstacles
 
     def record_scan(self, points, now, **kw):
@@ -101,13 +101,13 @@ def test_the_kernels_are_the_oracles_on_scans_and_paths_recorded_from_a_follow_r
             recorded["scans"].append((np.array(points, dtype=float), kw.get("clear_center"), kw.get("clear_radius", 0)))
         return with_obstacles(self, points, now, **kw)
 
-    def record_velocity(pose, path, scan_points, params=P, **kw):
+    def record_velocity(pose, points, cum, s_start, s_end, scan_points, params, current_speed):
         if scan_points is not None and len(scan_points) and len(recorded["velocity"]) < 200:
             recorded["velocity"].append((pose, np.array(scan_points, dtype=float)))
-        return compute(pose, path, scan_points, params, **kw)
+        return compute(pose, points, cum, s_start, s_end, scan_points, params, current_speed)
 
     monkeypatch.setattr(Costmap, "with_obstacles", record_scan)
-    monkeypatch.setattr(navigate, "compute_velocity", record_velocity)
+    monkeypatch.setattr(navigate, "command_on_part", record_velocity)
     run_scenario("follow", ScenarioOptions(seed=0))
     assert len(recorded["scans"]) == 60 and len(recorded["velocity"]) == 200
     rng = np.random.default_rng(23)

@@ -16,7 +16,8 @@ import numpy as np
 
 from rescuemesh.body import LaserScan
 from rescuemesh.geometry import Pose2D, wrap_angle
-from rescuemesh.nav.controller import ControllerParams, compute_velocity, limit_acceleration, rotate_toward
+from rescuemesh.nav import pursuit_kernels
+from rescuemesh.nav.controller import ControllerParams, command_on_part, limit_acceleration, rotate_toward
 from rescuemesh.nav.costmap import Costmap
 from rescuemesh.nav.path import Path
 from rescuemesh.nav.planner import Planner, make_planner
@@ -261,10 +262,11 @@ class NavigateToPose:
             return (0.0, 0.0)
         path = g.path
         assert path is not None
-        line = path.polyline  # per-path geometry, computed once per plan
+        points, cum = path.points, path.cum
         window = g.s_progress + p.controller.path_search_distance
-        g.s_progress, _ = line.project(pose.x, pose.y, s_min=g.s_progress, s_max=window)
-        goal_gap = math.hypot(line.xs[-1] - g.pose.x, line.ys[-1] - g.pose.y)
+        g.s_progress = pursuit_kernels.project(points, cum, pose.x, pose.y, g.s_progress, window)
+        end = path.polyline  # per-path floats, computed once per plan
+        goal_gap = math.hypot(end.xs[-1] - g.pose.x, end.ys[-1] - g.pose.y)
         remaining = max(0.0, path.length_m - g.s_progress) + goal_gap
         self._feedback = NavFeedback(g.goal_id, remaining, now)
 
@@ -280,8 +282,8 @@ class NavigateToPose:
         s_end = path.length_m
         if g.stop_distance > 0.0:
             s_end = path.length_m + goal_gap - g.stop_distance
-        local = line.slice(g.s_progress, s_end)
-        return compute_velocity(pose, local, self._scan_points, p.controller, current_speed=self._last_v)
+        # compute_velocity on the path's part ahead (Polyline.slice(s_progress, s_end)): one compiled call
+        return command_on_part(pose, points, cum, g.s_progress, s_end, self._scan_points, p.controller, self._last_v)
 
     # -- helpers --------------------------------------------------------------------------------
 

@@ -36,7 +36,7 @@ class Path:
 
     @classmethod
     def from_points(cls, points: np.ndarray) -> "Path":
-        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        pts = np.ascontiguousarray(points, dtype=float).reshape(-1, 2)  # the compiled controller reads it
         cum = cumulative_lengths(pts)
         path = cls(points=pts, length_m=float(cum[-1]))
         path.__dict__["cum"] = cum  # the cached property, known already
