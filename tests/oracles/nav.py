@@ -333,3 +333,19 @@ def _lookahead_point(line: Polyline, x: float, y: float, s_robot: float, lookahe
             return px + t * dx, py + t * dy
         px, py = qx, qy
     return end
+
+
+def exit_bound(cum, window, goal, whole, field=None):
+    """MCPPlanner's _exit_bound (nav/planner.py) before it was compiled."""
+    r0, r1, c0, c1 = window
+    h, w = cum.shape
+    gr, gc = goal
+    in_row, in_col = np.arange(w) - gc, np.arange(h) - gr  # offsets from the goal along a side
+    sides = ((np.s_[0, :], gr + 2, in_row, r0 > whole[0]), (np.s_[-1, :], h + 1 - gr, in_row, r1 < whole[1]),
+             (np.s_[:, 0], gc + 2, in_col, c0 > whole[2]), (np.s_[:, -1], w + 1 - gc, in_col, c1 < whole[3]))
+    bound = math.inf
+    for edge, across, along, present in sides:
+        if present:
+            rest = np.hypot(across, along) if field is None else field[r0:r1, c0:c1][edge]
+            bound = min(bound, float(np.min(cum[edge] + rest)))
+    return bound

@@ -34,12 +34,15 @@ def _check_costmap(cm, points, clear_center, clear_radius, rng):
     h, w = cm.shape
     g = cm.grid
     cx, cy = clear_center if clear_center is not None else (0.0, 0.0)
-    kept, cells = kernels.scan_obstacle_cells(np.ascontiguousarray(points), g.origin_x, g.origin_y, cm.resolution,
-                                              h, w, cm._stampable, cx, cy,
-                                              clear_radius if clear_center is not None else 0.0)
+    kept, cells, rows, cols = kernels.scan_obstacle_cells(np.ascontiguousarray(points), g.origin_x, g.origin_y,
+                                                          cm.resolution, h, w, cm._stampable, cx, cy,
+                                                          clear_radius if clear_center is not None else 0.0)
     want_kept, want_cells = ref.scan_obstacle_cells(points, np.array([g.origin_x, g.origin_y]), cm.resolution,
                                                     cm.shape, cm._stampable, clear_center, clear_radius)
-    assert kept.tolist() == want_kept.tolist() and cells.tolist() == want_cells.tolist()
+    want_points = np.asarray(points, dtype=float).reshape(-1, 2)[want_kept]  # what costmap.py kept
+    assert kept.tolist() == want_points.tolist() and cells.tolist() == want_cells.tolist()
+    want_rows, want_cols = np.divmod(want_cells, w)  # what costmap.py computed from the cells
+    assert rows.tolist() == want_rows.tolist() and cols.tolist() == want_cols.tolist()
     with_scan = cm.with_obstacles(points, 0.0, clear_center=clear_center, clear_radius=clear_radius)
     args = _lethal_args(with_scan)
     for _ in range(20):  # path samples: short runs of points near the scan

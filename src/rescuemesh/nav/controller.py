@@ -6,7 +6,6 @@ regulation, the swept-footprint obstacle check). Must not know: planning, goals'
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass
 
@@ -144,9 +143,9 @@ def command_on_part(pose: Pose2D, points: np.ndarray, cum: np.ndarray, s_start: 
     params, current_speed=current_speed)`: the command to follow the part of a path ((N, 2) m, arc
     lengths `cum` m) between two arc lengths, in one compiled call (the navigation's every tick)."""
     return pursuit_kernels.command_on_part(np.ascontiguousarray(points, dtype=float),
-                                           np.ascontiguousarray(cum, dtype=float), float(s_start), float(s_end),
+                                           np.ascontiguousarray(cum, dtype=float), s_start, s_end,
                                            pose.x, pose.y, pose.yaw, _scan_array(scan_points),
-                                           _param_vector(params), float(abs(current_speed)))
+                                           _param_vector(params), abs(current_speed))
 
 
 _NO_SCAN = np.zeros((0, 2))
@@ -155,12 +154,27 @@ _NO_SCAN = np.zeros((0, 2))
 def _scan_array(scan_points: np.ndarray | None) -> np.ndarray:
     if scan_points is None:
         return _NO_SCAN
+    if type(scan_points) is np.ndarray and scan_points.dtype == np.float64 and scan_points.ndim == 2 \
+            and scan_points.flags.c_contiguous:
+        return scan_points  # a sweep's points as LaserScan.points_in_map gives them
     return np.ascontiguousarray(scan_points, dtype=float).reshape(-1, 2)
 
 
-@functools.lru_cache(maxsize=32)
+_VECTORS: dict[int, tuple[ControllerParams, np.ndarray]] = {}  # by id: hashing the dataclass costs more than the tick
+
+
 def _param_vector(params: ControllerParams) -> np.ndarray:
-    """The parameters the compiled controller reads, in nav/pursuit_kernels.py's order (shared: not to be written)."""
+    """The parameters the compiled controller reads, in nav/pursuit_kernels.py's order (kept per
+    params object; shared: not to be written)."""
+    kept = _VECTORS.get(id(params))
+    if kept is None or kept[0] is not params:
+        if len(_VECTORS) >= 64:
+            _VECTORS.clear()
+        kept = _VECTORS[id(params)] = (params, _vector_of(params))
+    return kept[1]
+
+
+def _vector_of(params: ControllerParams) -> np.ndarray:
     k = pursuit_kernels
     vec = np.empty(k.N_PARAMS)
     for index, value in ((k.MAX_LINEAR, params.max_linear), (k.MAX_ANGULAR, params.max_angular),

@@ -26,13 +26,13 @@ _HALF_PI = math.pi / 2
 _TWO_PI = 2.0 * math.pi
 
 
-@compiled("Tuple((i8[::1], i8[::1]))(f8[:, ::1], f8, f8, f8, i8, i8, b1[::1], f8, f8, f8)")
+@compiled("Tuple((f8[:, ::1], i8[::1], i8[::1], i8[::1]))(f8[:, ::1], f8, f8, f8, i8, i8, b1[::1], f8, f8, f8)")
 def scan_obstacle_cells(points, origin_x, origin_y, resolution, rows, cols, stampable, clear_x, clear_y,
                         clear_radius):
     """The scan points that are obstacles of their own: on the grid, in a cell where `stampable`
     (flat, row-major) is True, and farther than `clear_radius` m from (clear_x, clear_y) (a radius
-    <= 0 clears nothing). Returns (their indices in `points`, in order; the distinct flat cells
-    holding them, sorted)."""
+    <= 0 clears nothing). Returns (those points, in order; the distinct flat cells holding them,
+    sorted; those cells' rows and columns, np.divmod(cells, cols))."""
     n = points.shape[0]
     kept = np.empty(n, dtype=np.int64)
     flat = np.empty(n, dtype=np.int64)
@@ -57,7 +57,15 @@ def scan_obstacle_cells(points, origin_x, origin_y, resolution, rows, cols, stam
         if j == 0 or cells[j] != cells[j - 1]:
             cells[distinct] = cells[j]
             distinct += 1
-    return kept[:m].copy(), cells[:distinct].copy()
+    cell_rows = np.empty(distinct, dtype=np.int64)
+    cell_cols = np.empty(distinct, dtype=np.int64)
+    for j in range(distinct):
+        cell_rows[j] = cells[j] // cols
+        cell_cols[j] = cells[j] - cell_rows[j] * cols
+    kept_points = np.empty((m, 2))
+    for j in range(m):
+        kept_points[j, 0], kept_points[j, 1] = points[kept[j], 0], points[kept[j], 1]
+    return kept_points, cells[:distinct].copy(), cell_rows, cell_cols
 
 
 @compiled("b1(f8[::1], f8[::1], f8, f8, f8, i8, i8, b1[::1], i8[::1], i8[::1], b1[:, ::1], f8, f8, f8)")
@@ -366,3 +374,52 @@ def cumulative_lengths(points):
     for i in range(1, n):
         cum[i] = cum[i - 1] + math.hypot(points[i, 0] - points[i - 1, 0], points[i, 1] - points[i - 1, 1])
     return cum
+
+
+@compiled()
+def _side_bound(cum, field, use_field, r0, c0, row, col, across, gr, gc, n, along_rows):
+    """The least cum + rest along one side of the window (its row `row` or its column `col`)."""
+    best = math.inf
+    for i in range(n):
+        r, c = (i, col) if along_rows else (row, i)
+        if use_field:
+            rest = field[r0 + r, c0 + c]
+        else:
+            rest = math.hypot(float(across), float(i - (gr if along_rows else gc)))
+        value = cum[r, c] + rest
+        if value < best:
+            best = value
+    return best
+
+
+@compiled_on_first_call("f8(f8[:, :], i8, i8, i8, i8, i8, i8, b1, b1, b1, b1, f8[:, :], b1)")
+def exit_bound(cum, r0, r1, c0, c1, gr, gc, top, bottom, left, right, field, use_field):
+    """The planner's bound on a path leaving the window (nav/planner.py, `_exit_bound`): over the
+    window's sides that are present (border a cell of the map), the least cost `cum` on the side
+    plus the rest: hypot(cells across to the goal's mirror image, cells along from the goal), or
+    `field` (whole map, at the window's offset) when `use_field`. inf when no side is present."""
+    h, w = cum.shape
+    bound = math.inf
+    if top:
+        bound = min(bound, _side_bound(cum, field, use_field, r0, c0, 0, 0, gr + 2, gr, gc, w, False))
+    if bottom:
+        bound = min(bound, _side_bound(cum, field, use_field, r0, c0, h - 1, 0, h + 1 - gr, gr, gc, w, False))
+    if left:
+        bound = min(bound, _side_bound(cum, field, use_field, r0, c0, 0, 0, gc + 2, gr, gc, h, True))
+    if right:
+        bound = min(bound, _side_bound(cum, field, use_field, r0, c0, 0, w - 1, w + 1 - gc, gr, gc, h, True))
+    return bound
+
+
+@compiled_on_first_call("Tuple((f8[:, ::1], f8[::1]))(f8[:, ::1], f8[::1], f8, f8)")
+def append_vertex(points, cum, x, y):
+    """(points with (x, y) appended, their arc lengths): `cum` (the arc lengths of `points`) and one
+    more, as `cumulative_lengths` sums it."""
+    n = points.shape[0]
+    out = np.empty((n + 1, 2))
+    out[:n] = points
+    out[n, 0], out[n, 1] = x, y
+    lengths = np.empty(n + 1)
+    lengths[:n] = cum
+    lengths[n] = cum[n - 1] + math.hypot(x - points[n - 1, 0], y - points[n - 1, 1])
+    return out, lengths

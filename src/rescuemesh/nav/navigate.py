@@ -222,7 +222,7 @@ class NavigateToPose:
         n = max(2, math.ceil(gap / (0.5 * self.costmap.resolution)) + 1)
         if self.costmap.segment_any_lethal((end[0], end[1]), (goal.x, goal.y), n):  # every half cell
             return None
-        return Path.from_points(np.vstack([path.points, [[goal.x, goal.y]]]))
+        return path.extended_to(goal.x, goal.y)  # Path.from_points(np.vstack([path.points, [[goal.x, goal.y]]]))
 
     def cancel(self, now: float) -> None:
         """End the active goal CANCELED "canceled"; no-op when idle."""

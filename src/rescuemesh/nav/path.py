@@ -42,6 +42,15 @@ class Path:
         path.__dict__["cum"] = cum  # the cached property, known already
         return path
 
+    def extended_to(self, x: float, y: float) -> "Path":
+        """This path with one more waypoint (x, y) m: `Path.from_points` of the points and (x, y),
+        without summing the earlier arc lengths again (compiled: nav/kernels.py, `append_vertex`)."""
+        points, cum = kernels.append_vertex(np.ascontiguousarray(self.points, dtype=float),
+                                            np.ascontiguousarray(self.cum, dtype=float), float(x), float(y))
+        path = Path(points=points, length_m=float(cum[-1]))
+        path.__dict__["cum"] = cum
+        return path
+
     @property
     def end(self) -> np.ndarray:
         """The last waypoint (x, y) in m."""

@@ -448,17 +448,13 @@ def _exit_bound(cum: np.ndarray, window: tuple[int, int, int, int], goal: tuple[
     coarse cell of the whole map to the goal on the static layer), their field. inf when no side
     borders a cell of the map."""
     r0, r1, c0, c1 = window
-    h, w = cum.shape
-    gr, gc = goal
-    in_row, in_col = np.arange(w) - gc, np.arange(h) - gr  # offsets from the goal along a side
-    sides = ((np.s_[0, :], gr + 2, in_row, r0 > whole[0]), (np.s_[-1, :], h + 1 - gr, in_row, r1 < whole[1]),
-             (np.s_[:, 0], gc + 2, in_col, c0 > whole[2]), (np.s_[:, -1], w + 1 - gc, in_col, c1 < whole[3]))
-    bound = math.inf
-    for edge, across, along, present in sides:
-        if present:
-            rest = np.hypot(across, along) if field is None else field[r0:r1, c0:c1][edge]
-            bound = min(bound, float(np.min(cum[edge] + rest)))
-    return bound
+    sides = (r0 > whole[0], r1 < whole[1], c0 > whole[2], c1 < whole[3])
+    # one compiled pass over the four sides (nav/kernels.py, exit_bound); tests/oracles/nav.py has the numpy
+    return kernels.exit_bound(cum, r0, r1, c0, c1, int(goal[0]), int(goal[1]), *sides,
+                              _NO_FIELD if field is None else field, field is not None)
+
+
+_NO_FIELD = np.zeros((0, 0))
 
 
 @register_planner("straight")
