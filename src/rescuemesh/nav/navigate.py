@@ -262,11 +262,12 @@ class NavigateToPose:
             return (0.0, 0.0)
         path = g.path
         assert path is not None
-        points, cum = path.points, path.cum
+        points, cum = np.ascontiguousarray(path.points, dtype=float), path.cum
         window = g.s_progress + p.controller.path_search_distance
+        # Polyline.project(pose, s_min=s_progress, s_max=window), compiled
         g.s_progress = pursuit_kernels.project(points, cum, pose.x, pose.y, g.s_progress, window)
-        end = path.polyline  # per-path floats, computed once per plan
-        goal_gap = math.hypot(end.xs[-1] - g.pose.x, end.ys[-1] - g.pose.y)
+        ex, ey = points[-1].tolist()
+        goal_gap = math.hypot(ex - g.pose.x, ey - g.pose.y)
         remaining = max(0.0, path.length_m - g.s_progress) + goal_gap
         self._feedback = NavFeedback(g.goal_id, remaining, now)
 
@@ -294,8 +295,7 @@ class NavigateToPose:
         # a goal in lethal space accepted via clear_radius is reached at the free cell the path ends in
         if g.path is None:
             return False
-        line = g.path.polyline
-        ex, ey = line.xs[-1], line.ys[-1]
+        ex, ey = g.path.points[-1].tolist()
         snapped = math.hypot(ex - g.pose.x, ey - g.pose.y) > 1e-6
         return snapped and math.hypot(ex - pose.x, ey - pose.y) <= tol
 
