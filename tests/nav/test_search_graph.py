@@ -22,13 +22,16 @@ def _tied_costs(rng, shape):
     return costs
 
 
-@pytest.mark.parametrize("in_place", [True, False])
-def test_a_refilled_graph_finds_the_costs_and_paths_a_new_graph_finds(in_place, monkeypatch):
+@pytest.mark.parametrize("in_place, own_traceback", [(True, True), (False, True), (True, False)])
+def test_a_refilled_graph_finds_the_costs_and_paths_a_new_graph_finds(in_place, own_traceback, monkeypatch):
     # MCP's find_costs resets costs but not its heap's entry count: a search that stopped at its
     # goal leaves entries behind, which a later search that runs out of cells (no goal, or none
     # reachable) pops, writing inf over the cumulative costs of the cells they name
     assert SearchGraph((2, 2)) and SearchGraph.in_place  # this scikit-image searches the array in place
     monkeypatch.setattr(SearchGraph, "in_place", in_place)  # False: a new MCP at every refill
+    assert SearchGraph.offsets is not None  # the path read back in a compiled call: this scikit-image's steps
+    if not own_traceback:
+        monkeypatch.setattr(SearchGraph, "offsets", None)  # MCP's own traceback
     rng = np.random.default_rng(5)
     graph = SearchGraph((48, 48))
     exhaustive = 0

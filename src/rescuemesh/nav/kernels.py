@@ -1,7 +1,9 @@
 """The navigation's hot loops, compiled: per sweep a scan's obstacle cells; per tick the lethal check
 of points (a path's samples, a straight extension's) against the costmap and its scan obstacles,
-and the controller's swept-footprint clearance; per plan stamping scan obstacles into a window, the
-planner's coarse grid and step costs, shortcutting, and arc lengths.
+the controller's swept-footprint clearance, and a follower's path grown by one waypoint; per plan
+stamping scan obstacles into a window, the planner's coarse grid and step costs (written into its
+search graph's array), the bound on paths leaving its window, reading a search's path back,
+shortcutting, and arc lengths.
 
 Owns: these loops over arrays. Must not know: Costmap, paths, robots, time (nav/costmap.py,
 nav/controller.py, nav/planner.py, nav/path.py call them with plain arrays and numbers).
@@ -423,3 +425,28 @@ def append_vertex(points, cum, x, y):
     lengths[:n] = cum
     lengths[n] = cum[n - 1] + math.hypot(x - points[n - 1, 0], y - points[n - 1, 1])
     return out, lengths
+
+
+@compiled_on_first_call("i8[:, ::1](i2[:, :], i8, i8, i8[:, ::1])")
+def trace_back(traceback, row, col, offsets):
+    """The cells (k, 2) of the cheapest path from a search's start to (row, col), start first, read
+    from MCP's `traceback` array (at each cell, the index in `offsets` of the step that reached it;
+    -1 at a start): what scikit-image's MCP.traceback returns, as an array."""
+    limit = traceback.shape[0] * traceback.shape[1]
+    n, r, c = 1, row, col
+    while traceback[r, c] != -1:
+        step = traceback[r, c]
+        if step < 0 or step >= offsets.shape[0] or n > limit:
+            raise ValueError("no path was found to this cell")
+        r -= offsets[step, 0]
+        c -= offsets[step, 1]
+        n += 1
+    cells = np.empty((n, 2), dtype=np.int64)
+    r, c = row, col
+    for k in range(n - 1, -1, -1):
+        cells[k, 0], cells[k, 1] = r, c
+        if k:
+            step = traceback[r, c]
+            r -= offsets[step, 0]
+            c -= offsets[step, 1]
+    return cells

@@ -109,6 +109,27 @@ def _graphs_read_costs_in_place() -> bool:
     return bool(cum[0, 2] > 2.0)  # around the blocked cell: 2 * sqrt(2); through it: 2
 
 
+def _traceback_offsets() -> np.ndarray | None:
+    """The steps MCP_Geometric's traceback array indexes (scikit-image's `make_offsets(2, True)`,
+    which it does not expose on the graph), when reading the path back with them gives what its
+    own `traceback` does on a probe search; else None (its `traceback` is then used). Checked once."""
+    try:
+        from skimage.graph._mcp import make_offsets
+
+        offsets = np.array(make_offsets(2, True), dtype=np.int64).reshape(-1, 2)
+    except (ImportError, TypeError, ValueError):
+        return None
+    costs = np.ones((6, 7), order="F")
+    costs[1:5, 3] = np.inf
+    mcp = MCP_Geometric(costs, fully_connected=True)
+    _, traceback = mcp.find_costs([(4, 1)], [(1, 5)], find_all_ends=True)
+    try:
+        ours = kernels.trace_back(traceback, 1, 5, offsets)
+    except ValueError:
+        return None
+    return offsets if [tuple(rc) for rc in ours.tolist()] == [tuple(rc) for rc in mcp.traceback((1, 5))] else None
+
+
 class SearchGraph:
     """An `MCP_Geometric` over the step costs of a window of `shape` (rows, cols), built over a
     float64 Fortran-ordered array of at least that shape whose cells beyond it are impassable
@@ -128,10 +149,14 @@ class SearchGraph:
     """
 
     in_place: ClassVar[bool | None] = None  # _graphs_read_costs_in_place(), on first use
+    offsets: ClassVar[np.ndarray | None | bool] = False  # _traceback_offsets(), on first use
 
     def __init__(self, capacity: tuple[int, int]) -> None:
         if SearchGraph.in_place is None:
             SearchGraph.in_place = _graphs_read_costs_in_place()
+        if SearchGraph.offsets is False:
+            SearchGraph.offsets = _traceback_offsets()
+        self._traceback: np.ndarray | None = None  # of the last search
         self.step = np.full(capacity, np.inf, order="F")
         self.shape = capacity
         self._mcp: MCP_Geometric | None = None
@@ -156,12 +181,16 @@ class SearchGraph:
         """MCP's cumulative costs from `starts` over the window (inf where the search did not
         finish), stopping when every one of `ends` is reached; a view the next search overwrites."""
         self._used = True
-        cum, _ = self._mcp.find_costs(starts, ends, find_all_ends=True)
+        cum, self._traceback = self._mcp.find_costs(starts, ends, find_all_ends=True)
         return cum[: self.shape[0], : self.shape[1]]
 
     def traceback(self, end: tuple[int, int]) -> list[tuple[int, int]]:
-        """The cells of the cheapest path from the last search's starts to `end`."""
-        return self._mcp.traceback(end)
+        """The cells of the cheapest path from the last search's starts to `end` (reached), start
+        first: MCP's `traceback`, read from its traceback array in one compiled call."""
+        if SearchGraph.offsets is None or self._traceback is None:
+            return [tuple(rc) for rc in self._mcp.traceback(end)]
+        cells = kernels.trace_back(self._traceback, int(end[0]), int(end[1]), SearchGraph.offsets)
+        return [(r, c) for r, c in cells.tolist()]
 
 
 @register_planner("mcp")
@@ -415,7 +444,7 @@ class MCPPlanner(Planner):
             cost = float(cum[goal_rc])
             if not math.isfinite(cost):
                 return None
-            cells = [tuple(rc) for rc in mcp.traceback(goal_rc)]
+            cells = mcp.traceback(goal_rc)
         pts = [centre(rc) for rc in cells]
         start_xy = (start.x, start.y)
         start_free = costmap.is_free(start.x, start.y)
