@@ -177,3 +177,21 @@ def test_the_lethal_check_without_the_stamped_array_answers_as_the_stamped_array
             far = math.hypot(x - centre[0], y - centre[1]) > 0.5
             got = lazy.any_lethal(np.array([x]), np.array([y]), clear_center=centre, clear_radius=0.5)
             assert got == (want and far)
+
+
+def test_a_costmap_built_from_one_with_scan_obstacles_checks_its_own_obstacles(room_costmap):
+    # the lethal check's arguments are kept per costmap: one built by with_obstacles from a costmap
+    # that has answered a check must not answer with its parent's obstacles
+    rng = np.random.default_rng(12)
+    g = room_costmap.grid
+    free = np.argwhere(room_costmap.static_clearance > 0.5)
+    for _ in range(20):
+        a = np.array([g.cell_to_world(*free[i]) for i in rng.integers(0, len(free), 5)])
+        b = np.array([g.cell_to_world(*free[i]) for i in rng.integers(0, len(free), 5)])
+        first = room_costmap.with_obstacles(a, 0.0)
+        assert first.any_lethal(a[:, 0], a[:, 1])
+        second = first.with_obstacles(b, 1.0)
+        fresh = room_costmap.with_obstacles(b, 1.0)
+        for xs, ys in ((a[:, 0], a[:, 1]), (b[:, 0], b[:, 1])):
+            for x, y in zip(xs, ys):
+                assert second.any_lethal(np.array([x]), np.array([y])) == fresh.any_lethal(np.array([x]), np.array([y]))

@@ -1,14 +1,20 @@
-"""Oracles of the navigation kernels (nav/kernels.py, body_kernels.py): the numpy that
-nav/costmap.py, nav/controller.py, nav/navigate.py, nav/planner.py and body.py ran before they were
-compiled, as functions of plain arrays (or of a Costmap, for the planner's shortcutting)."""
+"""Oracles of the navigation kernels (nav/kernels.py, pursuit_kernels.py, body_kernels.py): the numpy
+and Python that nav/costmap.py, nav/controller.py, nav/navigate.py, nav/planner.py and body.py ran
+before they were compiled, as functions of plain arrays (or of a Costmap, for the planner's
+shortcutting, and of a Polyline, for the controller)."""
 
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 
 import numpy as np
 
+from rescuemesh.geometry import Pose2D, wrap_angle
+from rescuemesh.nav.controller import ControllerParams, obstacle_reach, obstacle_speed_scale, rotate_toward
 from rescuemesh.nav.costmap import LETHAL
+from rescuemesh.nav.kernels import scan_clearance
+from rescuemesh.nav.path import Polyline
 
 
 def cells_of(xy, origin_xy, resolution, shape):
@@ -225,3 +231,121 @@ def cumulative_lengths(points):
         return np.zeros(len(points))
     seg = np.hypot(*np.diff(points, axis=0).T)
     return np.concatenate(([0.0], np.cumsum(seg)))
+
+
+# -- the controller (nav/controller.py before nav/pursuit_kernels.py) ---------------------------------
+
+
+def polyline_slice_command(pose, points, cum, s_start, s_end, scan_points, params, current_speed):
+    """What NavigateToPose ran every tick: compute_velocity on the path's part between two arc lengths."""
+    local = Polyline.from_points(points, cum=cum).slice(s_start, s_end)
+    return compute_velocity(pose, local, scan_points, params, current_speed=current_speed)
+
+
+def compute_velocity(
+    pose: Pose2D,
+    path: np.ndarray | Polyline,
+    scan_points: np.ndarray | None,
+    params: ControllerParams = ControllerParams(),
+    *,
+    goal_yaw: float | None = None,
+    xy_tolerance: float = 0.0,
+    current_speed: float | None = None,
+) -> tuple[float, float]:
+    """One regulated-pure-pursuit command (v m/s, omega rad/s) to follow `path` ((N, 2) map m, or a Polyline).
+
+    - Within `xy_tolerance` m of the path end: rotate in place to `goal_yaw` (rad), or (0, 0) without one.
+    - Heading error to the lookahead point above `rotate_to_heading_angle`: rotate in place.
+    - Otherwise drive the pure-pursuit arc through the lookahead point (at speed * lookahead_time m,
+      clamped; `current_speed` m/s defaults to max_linear), slowed on tight arcs, near the path end,
+      and for scan obstacles (`scan_points`, (M, 2) map m) in the swept footprint ahead before the
+      path end: stopped within `obstacle_stop_distance`. The arc's curvature is kept when omega saturates.
+
+    (nav/controller.py's compute_velocity before it was compiled: plain floats on a Polyline.)
+    """
+    line = path if isinstance(path, Polyline) else Polyline.from_points(path)
+    if len(line) == 0:
+        return (0.0, 0.0)
+    x, y = pose.x, pose.y
+    if math.hypot(line.xs[-1] - x, line.ys[-1] - y) <= xy_tolerance:
+        if goal_yaw is None:
+            return (0.0, 0.0)
+        return (0.0, rotate_toward(wrap_angle(goal_yaw - pose.yaw), params))
+
+    s_robot, _ = line.project(x, y, s_max=params.path_search_distance)
+    remaining = line.length - s_robot
+    speed = params.max_linear if current_speed is None else abs(current_speed)
+    lookahead = min(params.max_lookahead, max(params.min_lookahead, speed * params.lookahead_time))
+    tx, ty = _lookahead_point(line, x, y, s_robot, lookahead)
+    # the lookahead point in the robot frame (to_robot_frame, in floats)
+    c, s = math.cos(pose.yaw), math.sin(pose.yaw)
+    dx, dy = tx - x, ty - y
+    lx, ly = c * dx + s * dy, -s * dx + c * dy
+    dist2 = lx * lx + ly * ly
+    if dist2 < 1e-12:
+        return (0.0, 0.0)
+    heading_error = math.atan2(ly, lx)
+    if abs(heading_error) > params.rotate_to_heading_angle:
+        return (0.0, rotate_toward(heading_error, params))
+
+    curvature = 2.0 * ly / dist2
+    v = params.max_linear
+    if abs(curvature) > 1e-9 and 1.0 / abs(curvature) < params.regulated_min_radius:
+        v *= (1.0 / abs(curvature)) / params.regulated_min_radius
+    if remaining < params.approach_distance:
+        v = min(v, max(params.min_approach_linear, params.max_linear * remaining / params.approach_distance))
+    if scan_points is not None and len(scan_points):
+        horizon = remaining + params.obstacle_end_margin
+        points = np.ascontiguousarray(scan_points, dtype=float).reshape(-1, 2)
+        clearance = scan_clearance(points, x, y, pose.yaw, obstacle_reach(params), curvature,
+                                           params.footprint_radius, params.corridor_margin, horizon)
+        v *= obstacle_speed_scale(clearance, params)
+    omega = v * curvature
+    if abs(omega) > params.max_angular:
+        v *= params.max_angular / abs(omega)
+        omega = math.copysign(params.max_angular, omega)
+    return (float(v), float(omega))
+
+
+def _lookahead_point(line: Polyline, x: float, y: float, s_robot: float, lookahead: float) -> tuple[float, float]:
+    """Where the path beyond the robot's projection first leaves the `lookahead` m circle, else the path end.
+
+    Candidates: the projection, then every vertex beyond it, in order; the first one at least
+    `lookahead` m from (x, y) ends the search, and the circle is intersected with the segment to it.
+    """
+    xs, ys = line.xs, line.ys
+    end = (xs[-1], ys[-1])
+    first_later = bisect_right(line.cum, s_robot)
+    if first_later >= len(xs):
+        return end
+    px, py = line.point_at(s_robot)
+    if math.hypot(px - x, py - y) >= lookahead:
+        return px, py
+    for k in range(first_later, len(xs)):
+        qx, qy = xs[k], ys[k]
+        if math.hypot(qx - x, qy - y) >= lookahead:
+            # intersection of the lookahead circle with the segment from p (inside) to q (outside)
+            p0x, p0y, dx, dy = px - x, py - y, qx - px, qy - py
+            a, b = dx * dx + dy * dy, 2.0 * (p0x * dx + p0y * dy)
+            c = p0x * p0x + p0y * p0y - lookahead * lookahead
+            t = (-b + math.sqrt(max(b * b - 4.0 * a * c, 0.0))) / (2.0 * a) if a > 0.0 else 1.0
+            t = min(max(t, 0.0), 1.0)
+            return px + t * dx, py + t * dy
+        px, py = qx, qy
+    return end
+
+
+def exit_bound(cum, window, goal, whole, field=None):
+    """MCPPlanner's _exit_bound (nav/planner.py) before it was compiled."""
+    r0, r1, c0, c1 = window
+    h, w = cum.shape
+    gr, gc = goal
+    in_row, in_col = np.arange(w) - gc, np.arange(h) - gr  # offsets from the goal along a side
+    sides = ((np.s_[0, :], gr + 2, in_row, r0 > whole[0]), (np.s_[-1, :], h + 1 - gr, in_row, r1 < whole[1]),
+             (np.s_[:, 0], gc + 2, in_col, c0 > whole[2]), (np.s_[:, -1], w + 1 - gc, in_col, c1 < whole[3]))
+    bound = math.inf
+    for edge, across, along, present in sides:
+        if present:
+            rest = np.hypot(across, along) if field is None else field[r0:r1, c0:c1][edge]
+            bound = min(bound, float(np.min(cum[edge] + rest)))
+    return bound

@@ -34,12 +34,15 @@ def _check_costmap(cm, points, clear_center, clear_radius, rng):
     h, w = cm.shape
     g = cm.grid
     cx, cy = clear_center if clear_center is not None else (0.0, 0.0)
-    kept, cells = kernels.scan_obstacle_cells(np.ascontiguousarray(points), g.origin_x, g.origin_y, cm.resolution,
-                                              h, w, cm._stampable, cx, cy,
-                                              clear_radius if clear_center is not None else 0.0)
+    kept, cells, rows, cols = kernels.scan_obstacle_cells(np.ascontiguousarray(points), g.origin_x, g.origin_y,
+                                                          cm.resolution, h, w, cm._stampable, cx, cy,
+                                                          clear_radius if clear_center is not None else 0.0)
     want_kept, want_cells = ref.scan_obstacle_cells(points, np.array([g.origin_x, g.origin_y]), cm.resolution,
                                                     cm.shape, cm._stampable, clear_center, clear_radius)
-    assert kept.tolist() == want_kept.tolist() and cells.tolist() == want_cells.tolist()
+    want_points = np.asarray(points, dtype=float).reshape(-1, 2)[want_kept]  # what costmap.py kept
+    assert kept.tolist() == want_points.tolist() and cells.tolist() == want_cells.tolist()
+    want_rows, want_cols = np.divmod(want_cells, w)  # what costmap.py computed from the cells
+    assert rows.tolist() == want_rows.tolist() and cols.tolist() == want_cols.tolist()
     with_scan = cm.with_obstacles(points, 0.0, clear_center=clear_center, clear_radius=clear_radius)
     args = _lethal_args(with_scan)
     for _ in range(20):  # path samples: short runs of points near the scan
@@ -93,7 +96,7 @@ def test_the_kernels_are_the_oracles_on_scans_and_paths_recorded_from_a_follow_r
     from rescuemesh.scenarios.runner import run_scenario
 
     recorded = {"scans": [], "velocity": []}
-    compute = controller.compute_velocity
+    compute = controller.command_on_part
     with_obstacles = Costmap.with_obstacles
 
     def record_scan(self, points, now, **kw):
@@ -101,13 +104,13 @@ def test_the_kernels_are_the_oracles_on_scans_and_paths_recorded_from_a_follow_r
             recorded["scans"].append((np.array(points, dtype=float), kw.get("clear_center"), kw.get("clear_radius", 0)))
         return with_obstacles(self, points, now, **kw)
 
-    def record_velocity(pose, path, scan_points, params=P, **kw):
+    def record_velocity(pose, points, cum, s_start, s_end, scan_points, params, current_speed):
         if scan_points is not None and len(scan_points) and len(recorded["velocity"]) < 200:
             recorded["velocity"].append((pose, np.array(scan_points, dtype=float)))
-        return compute(pose, path, scan_points, params, **kw)
+        return compute(pose, points, cum, s_start, s_end, scan_points, params, current_speed)
 
     monkeypatch.setattr(Costmap, "with_obstacles", record_scan)
-    monkeypatch.setattr(navigate, "compute_velocity", record_velocity)
+    monkeypatch.setattr(navigate, "command_on_part", record_velocity)
     run_scenario("follow", ScenarioOptions(seed=0))
     assert len(recorded["scans"]) == 60 and len(recorded["velocity"]) == 200
     rng = np.random.default_rng(23)

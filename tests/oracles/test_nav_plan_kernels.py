@@ -154,11 +154,14 @@ def test_scan_points_are_the_oracles_on_random_sweeps():
 def _check_coarse(cost, k, window, weight=8.0):
     r0, r1, c0, c1 = window
     rows, cols = (r1 - r0, c1 - c0) if k > 1 else cost.shape
-    lethal, step = kernels.coarse_step_costs(cost, k, rows, cols, np.float32(weight))
+    # into a larger Fortran-ordered array holding an older graph's costs, as a planner's graph may
+    step = np.asfortranarray(np.random.default_rng(rows * cols).uniform(0.0, 9.0, (rows + 5, cols + 16)))
+    lethal = kernels.coarse_step_costs(cost, k, rows, cols, np.float32(weight), step)
     want_lethal, want_step = ref.graph_costs(cost, k, window, weight)
     assert want_step.dtype == np.float32  # numpy's arithmetic was float32: the kernel's too
     np.testing.assert_array_equal(lethal, want_lethal)
-    np.testing.assert_array_equal(step, want_step.astype(np.float64))  # what MCP_Geometric reads
+    np.testing.assert_array_equal(step[:rows, :cols], want_step.astype(np.float64))  # what MCP_Geometric reads
+    assert np.isinf(step[rows:]).all() and np.isinf(step[:, cols:]).all()  # beyond the window: impassable
 
 
 def test_the_coarse_grid_is_the_oracles_on_random_windows(office_costmap):
@@ -282,10 +285,10 @@ def recorded():
             rec["paths"].append((self, np.array(points), float(s0), kw["clear_center"], kw["clear_radius"]))
         return any_lethal_along(self, points, cum, s0, s1, step, **kw)
 
-    def record_coarse(self, cost, window):
+    def record_coarse(self, cost, window, *graph):
         if len(rec["coarse"]) < 60:
             rec["coarse"].append((cost.copy(), self.downsample, window))
-        return graph_over(self, cost, window)
+        return graph_over(self, cost, window, *graph)
 
     def record_shortcut(costmap, points, **kw):
         if len(rec["shortcuts"]) < 200:
@@ -318,8 +321,54 @@ def test_the_kernels_are_the_oracles_on_inputs_recorded_from_a_follow_run(record
         _check_coarse(cost, k, window)
     for cm, points in recorded["shortcuts"]:
         _check_shortcut(cm, points)
-    assert len(recorded["segments"]) >= 50 and len(recorded["polylines"]) >= 100
+    assert len(recorded["segments"]) >= 50 and len(recorded["polylines"]) >= 30  # one a plan (extensions: extended_to)
     for cm, a, b, samples in recorded["segments"]:
         _check_segment(cm, a, b, samples)
     for points in recorded["polylines"]:
         np.testing.assert_array_equal(cumulative_lengths(points), ref.cumulative_lengths(points))
+
+
+# -- the bound on paths leaving a search window ------------------------------------------------------
+
+
+def test_the_exit_bound_is_the_oracles_on_random_windows_costs_and_fields():
+    from rescuemesh.nav.planner import _exit_bound
+
+    rng = np.random.default_rng(38)
+    whole = (0, 60, 0, 90)
+    finite = 0
+    for trial in range(400):
+        r0, c0 = int(rng.integers(0, 50)), int(rng.integers(0, 80))
+        r1, c1 = int(rng.integers(r0 + 1, 61)), int(rng.integers(c0 + 1, 91))
+        window = (r0, r1, c0, c1)
+        cum = rng.uniform(0.0, 80.0, (r1 - r0, c1 - c0))
+        cum[rng.random(cum.shape) < 0.3] = np.inf
+        if trial % 3 == 0:  # as the search returns it: a Fortran-ordered array's corner
+            big = np.asfortranarray(np.full((r1 - r0 + 7, c1 - c0 + 9), -1.0))
+            big[: r1 - r0, : c1 - c0] = cum
+            cum = big[: r1 - r0, : c1 - c0]
+        goal = (int(rng.integers(0, r1 - r0)), int(rng.integers(0, c1 - c0)))
+        field = None
+        if trial % 2:
+            field = rng.uniform(0.0, 50.0, (60, 90))
+            field[rng.random(field.shape) < 0.2] = np.inf
+        got, want = _exit_bound(cum, window, goal, whole, field), ref.exit_bound(cum, window, goal, whole, field)
+        assert got == want, trial
+        finite += math.isfinite(want)
+    assert finite > 200
+
+
+def test_a_path_extended_by_a_waypoint_is_the_path_of_all_its_points():
+    # a follower's path grows by its leader's new pose: the same points, arc lengths and length as
+    # Path.from_points(np.vstack(...)), what NavigateToPose._extended built before
+    from rescuemesh.nav.path import Path
+
+    rng = np.random.default_rng(39)
+    for trial in range(500):
+        points = np.cumsum(rng.normal(0.0, float(rng.choice([0.01, 0.3, 3.0])), (int(rng.integers(1, 40)), 2)), axis=0)
+        x, y = points[-1] + rng.normal(0.0, 0.5, 2) if trial % 7 else points[-1]
+        got = Path.from_points(points).extended_to(float(x), float(y))
+        want = Path.from_points(np.vstack([points, [[x, y]]]))
+        np.testing.assert_array_equal(got.points, want.points)
+        np.testing.assert_array_equal(got.cum, want.cum)
+        assert got.length_m == want.length_m and got.points.flags.c_contiguous

@@ -7,13 +7,12 @@ regulation, the swept-footprint obstacle check). Must not know: planning, goals'
 from __future__ import annotations
 
 import math
-from bisect import bisect_right
 from dataclasses import dataclass
 
 import numpy as np
 
 from rescuemesh.geometry import Pose2D, wrap_angle
-from rescuemesh.nav import kernels
+from rescuemesh.nav import kernels, pursuit_kernels
 from rescuemesh.nav.path import Polyline
 
 
@@ -121,76 +120,72 @@ def compute_velocity(
       and for scan obstacles (`scan_points`, (M, 2) map m) in the swept footprint ahead before the
       path end: stopped within `obstacle_stop_distance`. The arc's curvature is kept when omega saturates.
 
-    The geometry runs in plain floats on a `Polyline` (numpy only for the scan): a few segments
-    per tick are far cheaper that way than as tiny numpy arrays.
+    The lookahead point is where the path beyond the robot's projection (within
+    `path_search_distance` of the path's start) first leaves the lookahead circle: candidates are
+    the projection, then every vertex beyond it in order; the first one at least `lookahead` m
+    away ends the search, and the circle is intersected with the segment to it (else the path end).
+    One compiled call (nav/pursuit_kernels.py, `command`).
     """
     line = path if isinstance(path, Polyline) else Polyline.from_points(path)
     if len(line) == 0:
         return (0.0, 0.0)
-    x, y = pose.x, pose.y
-    if math.hypot(line.xs[-1] - x, line.ys[-1] - y) <= xy_tolerance:
-        if goal_yaw is None:
-            return (0.0, 0.0)
-        return (0.0, rotate_toward(wrap_angle(goal_yaw - pose.yaw), params))
-
-    s_robot, _ = line.project(x, y, s_max=params.path_search_distance)
-    remaining = line.length - s_robot
+    points = np.column_stack([line.xs, line.ys]).reshape(-1, 2)
     speed = params.max_linear if current_speed is None else abs(current_speed)
-    lookahead = min(params.max_lookahead, max(params.min_lookahead, speed * params.lookahead_time))
-    tx, ty = _lookahead_point(line, x, y, s_robot, lookahead)
-    # the lookahead point in the robot frame (to_robot_frame, in floats)
-    c, s = math.cos(pose.yaw), math.sin(pose.yaw)
-    dx, dy = tx - x, ty - y
-    lx, ly = c * dx + s * dy, -s * dx + c * dy
-    dist2 = lx * lx + ly * ly
-    if dist2 < 1e-12:
-        return (0.0, 0.0)
-    heading_error = math.atan2(ly, lx)
-    if abs(heading_error) > params.rotate_to_heading_angle:
-        return (0.0, rotate_toward(heading_error, params))
-
-    curvature = 2.0 * ly / dist2
-    v = params.max_linear
-    if abs(curvature) > 1e-9 and 1.0 / abs(curvature) < params.regulated_min_radius:
-        v *= (1.0 / abs(curvature)) / params.regulated_min_radius
-    if remaining < params.approach_distance:
-        v = min(v, max(params.min_approach_linear, params.max_linear * remaining / params.approach_distance))
-    if scan_points is not None and len(scan_points):
-        horizon = remaining + params.obstacle_end_margin
-        points = np.ascontiguousarray(scan_points, dtype=float).reshape(-1, 2)
-        clearance = kernels.scan_clearance(points, x, y, pose.yaw, obstacle_reach(params), curvature,
-                                           params.footprint_radius, params.corridor_margin, horizon)
-        v *= obstacle_speed_scale(clearance, params)
-    omega = v * curvature
-    if abs(omega) > params.max_angular:
-        v *= params.max_angular / abs(omega)
-        omega = math.copysign(params.max_angular, omega)
-    return (float(v), float(omega))
+    return pursuit_kernels.command(points, np.asarray(line.cum, dtype=float), pose.x, pose.y, pose.yaw,
+                                   _scan_array(scan_points), _param_vector(params), float(speed),
+                                   goal_yaw is not None, 0.0 if goal_yaw is None else float(goal_yaw),
+                                   float(xy_tolerance))
 
 
-def _lookahead_point(line: Polyline, x: float, y: float, s_robot: float, lookahead: float) -> tuple[float, float]:
-    """Where the path beyond the robot's projection first leaves the `lookahead` m circle, else the path end.
+def command_on_part(pose: Pose2D, points: np.ndarray, cum: np.ndarray, s_start: float, s_end: float,
+                    scan_points: np.ndarray | None, params: ControllerParams, current_speed: float) -> tuple[float, float]:
+    """`compute_velocity(pose, Polyline.from_points(points, cum=cum).slice(s_start, s_end), scan_points,
+    params, current_speed=current_speed)`: the command to follow the part of a path ((N, 2) m, arc
+    lengths `cum` m) between two arc lengths, in one compiled call (the navigation's every tick)."""
+    return pursuit_kernels.command_on_part(np.ascontiguousarray(points, dtype=float),
+                                           np.ascontiguousarray(cum, dtype=float), s_start, s_end,
+                                           pose.x, pose.y, pose.yaw, _scan_array(scan_points),
+                                           _param_vector(params), abs(current_speed))
 
-    Candidates: the projection, then every vertex beyond it, in order; the first one at least
-    `lookahead` m from (x, y) ends the search, and the circle is intersected with the segment to it.
-    """
-    xs, ys = line.xs, line.ys
-    end = (xs[-1], ys[-1])
-    first_later = bisect_right(line.cum, s_robot)
-    if first_later >= len(xs):
-        return end
-    px, py = line.point_at(s_robot)
-    if math.hypot(px - x, py - y) >= lookahead:
-        return px, py
-    for k in range(first_later, len(xs)):
-        qx, qy = xs[k], ys[k]
-        if math.hypot(qx - x, qy - y) >= lookahead:
-            # intersection of the lookahead circle with the segment from p (inside) to q (outside)
-            p0x, p0y, dx, dy = px - x, py - y, qx - px, qy - py
-            a, b = dx * dx + dy * dy, 2.0 * (p0x * dx + p0y * dy)
-            c = p0x * p0x + p0y * p0y - lookahead * lookahead
-            t = (-b + math.sqrt(max(b * b - 4.0 * a * c, 0.0))) / (2.0 * a) if a > 0.0 else 1.0
-            t = min(max(t, 0.0), 1.0)
-            return px + t * dx, py + t * dy
-        px, py = qx, qy
-    return end
+
+_NO_SCAN = np.zeros((0, 2))
+
+
+def _scan_array(scan_points: np.ndarray | None) -> np.ndarray:
+    if scan_points is None:
+        return _NO_SCAN
+    if type(scan_points) is np.ndarray and scan_points.dtype == np.float64 and scan_points.ndim == 2 \
+            and scan_points.flags.c_contiguous:
+        return scan_points  # a sweep's points as LaserScan.points_in_map gives them
+    return np.ascontiguousarray(scan_points, dtype=float).reshape(-1, 2)
+
+
+_VECTORS: dict[int, tuple[ControllerParams, np.ndarray]] = {}  # by id: hashing the dataclass costs more than the tick
+
+
+def _param_vector(params: ControllerParams) -> np.ndarray:
+    """The parameters the compiled controller reads, in nav/pursuit_kernels.py's order (kept per
+    params object; shared: not to be written)."""
+    kept = _VECTORS.get(id(params))
+    if kept is None or kept[0] is not params:
+        if len(_VECTORS) >= 64:
+            _VECTORS.clear()
+        kept = _VECTORS[id(params)] = (params, _vector_of(params))
+    return kept[1]
+
+
+def _vector_of(params: ControllerParams) -> np.ndarray:
+    k = pursuit_kernels
+    vec = np.empty(k.N_PARAMS)
+    for index, value in ((k.MAX_LINEAR, params.max_linear), (k.MAX_ANGULAR, params.max_angular),
+                         (k.MIN_LOOKAHEAD, params.min_lookahead), (k.MAX_LOOKAHEAD, params.max_lookahead),
+                         (k.LOOKAHEAD_TIME, params.lookahead_time), (k.ROTATE_ANGLE, params.rotate_to_heading_angle),
+                         (k.ROTATE_GAIN, params.rotate_gain), (k.MIN_ROTATE, params.min_rotate_speed),
+                         (k.DEADBAND, params.heading_deadband), (k.MIN_RADIUS, params.regulated_min_radius),
+                         (k.APPROACH, params.approach_distance), (k.MIN_APPROACH, params.min_approach_linear),
+                         (k.FOOTPRINT, params.footprint_radius), (k.MARGIN, params.corridor_margin),
+                         (k.STOP, params.obstacle_stop_distance), (k.SLOW, params.obstacle_slow_distance),
+                         (k.END_MARGIN, params.obstacle_end_margin), (k.SEARCH, params.path_search_distance),
+                         (k.REACH, obstacle_reach(params))):
+        vec[index] = value
+    return vec

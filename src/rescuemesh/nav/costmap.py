@@ -94,6 +94,7 @@ class Costmap:
         self._obstacle_cells = np.zeros(0, dtype=np.int64)
         self._obstacle_rc = np.divmod(self._obstacle_cells, self.shape[1])  # their rows and columns
         self.obstacle_points = np.zeros((0, 2))
+        self._lethal_base: tuple | None = None  # see _lethal_args
         self.obstacle_stamp: float | None = None
         self._kernel = self._make_kernel()
         dr, dc, kval = self._kernel
@@ -187,13 +188,16 @@ class Costmap:
         obstacle cells when not stamped, the lethal disc and the cleared circle."""
         cx, cy = clear_center if clear_center is not None and clear_radius > 0.0 else (0.0, 0.0)
         radius = clear_radius if clear_center is not None else 0.0
-        h, w = self.shape
-        if self._lethal is not None:
-            lethal, (orow, ocol) = self._lethal.reshape(-1), _NO_OBSTACLES
-        else:
-            lethal, (orow, ocol) = self._static_lethal.reshape(-1), self._obstacle_rc
-        return (self.grid.origin_x, self.grid.origin_y, self.resolution, h, w, lethal, orow, ocol, self._lethal_disc,
-                cx, cy, radius)
+        base = self._lethal_base  # the grid's part, kept while the lethal array stays (asked every tick)
+        if base is None or base[0] is not self._lethal:
+            h, w = self.shape
+            if self._lethal is not None:
+                lethal, (orow, ocol) = self._lethal.reshape(-1), _NO_OBSTACLES
+            else:
+                lethal, (orow, ocol) = self._static_lethal.reshape(-1), self._obstacle_rc
+            base = self._lethal_base = (self._lethal, (self.grid.origin_x, self.grid.origin_y, self.resolution, h, w,
+                                                       lethal, orow, ocol, self._lethal_disc))
+        return base[1] + (cx, cy, radius)
 
     def clearance_at(self, x: float, y: float) -> float:
         """Distance in m from (x, y) to the nearest static map obstacle (0 outside the grid)."""
@@ -231,14 +235,15 @@ class Costmap:
         # this runs for every scan, mostly on points of static walls (compiled: nav/kernels.py)
         h, w = self.shape
         cx, cy = clear_center if clear_center is not None else (0.0, 0.0)
-        kept, cells = kernels.scan_obstacle_cells(pts, self.grid.origin_x, self.grid.origin_y, self.resolution, h, w,
-                                                  self._stampable, cx, cy,
-                                                  clear_radius if clear_center is not None else 0.0)
-        out.obstacle_points = pts[kept]
+        kept, cells, rows, cols = kernels.scan_obstacle_cells(pts, self.grid.origin_x, self.grid.origin_y,
+                                                              self.resolution, h, w, self._stampable, cx, cy,
+                                                              clear_radius if clear_center is not None else 0.0)
+        out.obstacle_points = kept
         out._cost = out._lethal = None  # built on first use: a blocked-path check does not need them
         out._window = None
         out._obstacle_cells = cells
-        out._obstacle_rc = np.divmod(cells, w)
+        out._obstacle_rc = (rows, cols)
+        out._lethal_base = None
         if len(cells) == 0:
             out._cost, out._lethal = self.static_cost, self._static_lethal
         return out

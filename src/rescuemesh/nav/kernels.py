@@ -1,7 +1,9 @@
 """The navigation's hot loops, compiled: per sweep a scan's obstacle cells; per tick the lethal check
 of points (a path's samples, a straight extension's) against the costmap and its scan obstacles,
-and the controller's swept-footprint clearance; per plan stamping scan obstacles into a window, the
-planner's coarse grid and step costs, shortcutting, and arc lengths.
+the controller's swept-footprint clearance, and a follower's path grown by one waypoint; per plan
+stamping scan obstacles into a window, the planner's coarse grid and step costs (written into its
+search graph's array), the bound on paths leaving its window, reading a search's path back,
+shortcutting, and arc lengths.
 
 Owns: these loops over arrays. Must not know: Costmap, paths, robots, time (nav/costmap.py,
 nav/controller.py, nav/planner.py, nav/path.py call them with plain arrays and numbers).
@@ -26,13 +28,13 @@ _HALF_PI = math.pi / 2
 _TWO_PI = 2.0 * math.pi
 
 
-@compiled("Tuple((i8[::1], i8[::1]))(f8[:, ::1], f8, f8, f8, i8, i8, b1[::1], f8, f8, f8)")
+@compiled("Tuple((f8[:, ::1], i8[::1], i8[::1], i8[::1]))(f8[:, ::1], f8, f8, f8, i8, i8, b1[::1], f8, f8, f8)")
 def scan_obstacle_cells(points, origin_x, origin_y, resolution, rows, cols, stampable, clear_x, clear_y,
                         clear_radius):
     """The scan points that are obstacles of their own: on the grid, in a cell where `stampable`
     (flat, row-major) is True, and farther than `clear_radius` m from (clear_x, clear_y) (a radius
-    <= 0 clears nothing). Returns (their indices in `points`, in order; the distinct flat cells
-    holding them, sorted)."""
+    <= 0 clears nothing). Returns (those points, in order; the distinct flat cells holding them,
+    sorted; those cells' rows and columns, np.divmod(cells, cols))."""
     n = points.shape[0]
     kept = np.empty(n, dtype=np.int64)
     flat = np.empty(n, dtype=np.int64)
@@ -57,7 +59,15 @@ def scan_obstacle_cells(points, origin_x, origin_y, resolution, rows, cols, stam
         if j == 0 or cells[j] != cells[j - 1]:
             cells[distinct] = cells[j]
             distinct += 1
-    return kept[:m].copy(), cells[:distinct].copy()
+    cell_rows = np.empty(distinct, dtype=np.int64)
+    cell_cols = np.empty(distinct, dtype=np.int64)
+    for j in range(distinct):
+        cell_rows[j] = cells[j] // cols
+        cell_cols[j] = cells[j] - cell_rows[j] * cols
+    kept_points = np.empty((m, 2))
+    for j in range(m):
+        kept_points[j, 0], kept_points[j, 1] = points[kept[j], 0], points[kept[j], 1]
+    return kept_points, cells[:distinct].copy(), cell_rows, cell_cols
 
 
 @compiled("b1(f8[::1], f8[::1], f8, f8, f8, i8, i8, b1[::1], i8[::1], i8[::1], b1[:, ::1], f8, f8, f8)")
@@ -197,14 +207,16 @@ def path_any_lethal(points, cum, s0, s1, step, origin_x, origin_y, resolution, r
 _LETHAL32 = np.float32(1.0)  # costmap.LETHAL, as the float32 costs hold it
 
 
-@compiled_on_first_call("Tuple((b1[:, ::1], f8[:, ::1]))(f4[:, :], i8, i8, i8, f4)")
-def coarse_step_costs(cost, k, rows, cols, weight):
+@compiled_on_first_call("b1[:, ::1](f4[:, :], i8, i8, i8, f4, f8[::1, :])")
+def coarse_step_costs(cost, k, rows, cols, weight, step):
     """The planner's coarse grid of (`rows`, `cols`) blocks of k x k cells of `cost` (float32 in
-    [0, 1]; a block's cells past cost's edge count as lethal): (lethal: the block's highest cost is
-    LETHAL; the cost of a step into it, 1 + weight * that highest cost in float32, inf when lethal)."""
+    [0, 1]; a block's cells past cost's edge count as lethal): returns lethal (the block's highest
+    cost is LETHAL) and writes into `step[:rows, :cols]` the cost of a step into each block, 1 +
+    weight * that highest cost in float32, inf when lethal; the rest of `step` (at least rows x
+    cols, Fortran order: the array MCP_Geometric reads) becomes inf (impassable)."""
     h, w = cost.shape
     lethal = np.empty((rows, cols), dtype=np.bool_)
-    step = np.empty((rows, cols))
+    step[:, :] = math.inf
     one = np.float32(1.0)
     for r in range(rows):
         for c in range(cols):
@@ -221,7 +233,7 @@ def coarse_step_costs(cost, k, rows, cols, weight):
             is_lethal = top >= _LETHAL32
             lethal[r, c] = is_lethal
             step[r, c] = math.inf if is_lethal else np.float64(one + weight * top)
-    return lethal, step
+    return lethal
 
 
 @compiled()  # no signature: compiled into its callers, not loaded at import
@@ -364,3 +376,77 @@ def cumulative_lengths(points):
     for i in range(1, n):
         cum[i] = cum[i - 1] + math.hypot(points[i, 0] - points[i - 1, 0], points[i, 1] - points[i - 1, 1])
     return cum
+
+
+@compiled()
+def _side_bound(cum, field, use_field, r0, c0, row, col, across, gr, gc, n, along_rows):
+    """The least cum + rest along one side of the window (its row `row` or its column `col`)."""
+    best = math.inf
+    for i in range(n):
+        r, c = (i, col) if along_rows else (row, i)
+        if use_field:
+            rest = field[r0 + r, c0 + c]
+        else:
+            rest = math.hypot(float(across), float(i - (gr if along_rows else gc)))
+        value = cum[r, c] + rest
+        if value < best:
+            best = value
+    return best
+
+
+@compiled_on_first_call("f8(f8[:, :], i8, i8, i8, i8, i8, i8, b1, b1, b1, b1, f8[:, :], b1)")
+def exit_bound(cum, r0, r1, c0, c1, gr, gc, top, bottom, left, right, field, use_field):
+    """The planner's bound on a path leaving the window (nav/planner.py, `_exit_bound`): over the
+    window's sides that are present (border a cell of the map), the least cost `cum` on the side
+    plus the rest: hypot(cells across to the goal's mirror image, cells along from the goal), or
+    `field` (whole map, at the window's offset) when `use_field`. inf when no side is present."""
+    h, w = cum.shape
+    bound = math.inf
+    if top:
+        bound = min(bound, _side_bound(cum, field, use_field, r0, c0, 0, 0, gr + 2, gr, gc, w, False))
+    if bottom:
+        bound = min(bound, _side_bound(cum, field, use_field, r0, c0, h - 1, 0, h + 1 - gr, gr, gc, w, False))
+    if left:
+        bound = min(bound, _side_bound(cum, field, use_field, r0, c0, 0, 0, gc + 2, gr, gc, h, True))
+    if right:
+        bound = min(bound, _side_bound(cum, field, use_field, r0, c0, 0, w - 1, w + 1 - gc, gr, gc, h, True))
+    return bound
+
+
+@compiled_on_first_call("Tuple((f8[:, ::1], f8[::1]))(f8[:, ::1], f8[::1], f8, f8)")
+def append_vertex(points, cum, x, y):
+    """(points with (x, y) appended, their arc lengths): `cum` (the arc lengths of `points`) and one
+    more, as `cumulative_lengths` sums it."""
+    n = points.shape[0]
+    out = np.empty((n + 1, 2))
+    out[:n] = points
+    out[n, 0], out[n, 1] = x, y
+    lengths = np.empty(n + 1)
+    lengths[:n] = cum
+    lengths[n] = cum[n - 1] + math.hypot(x - points[n - 1, 0], y - points[n - 1, 1])
+    return out, lengths
+
+
+@compiled_on_first_call("i8[:, ::1](i2[:, :], i8, i8, i8[:, ::1])")
+def trace_back(traceback, row, col, offsets):
+    """The cells (k, 2) of the cheapest path from a search's start to (row, col), start first, read
+    from MCP's `traceback` array (at each cell, the index in `offsets` of the step that reached it;
+    -1 at a start): what scikit-image's MCP.traceback returns, as an array."""
+    limit = traceback.shape[0] * traceback.shape[1]
+    n, r, c = 1, row, col
+    while traceback[r, c] != -1:
+        step = traceback[r, c]
+        if step < 0 or step >= offsets.shape[0] or n > limit:
+            raise ValueError("no path was found to this cell")
+        r -= offsets[step, 0]
+        c -= offsets[step, 1]
+        n += 1
+    cells = np.empty((n, 2), dtype=np.int64)
+    r, c = row, col
+    for k in range(n - 1, -1, -1):
+        cells[k, 0], cells[k, 1] = r, c
+        if k:
+            step = traceback[r, c]
+            r -= offsets[step, 0]
+            c -= offsets[step, 1]
+    return cells

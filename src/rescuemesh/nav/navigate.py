@@ -16,7 +16,8 @@ import numpy as np
 
 from rescuemesh.body import LaserScan
 from rescuemesh.geometry import Pose2D, wrap_angle
-from rescuemesh.nav.controller import ControllerParams, compute_velocity, limit_acceleration, rotate_toward
+from rescuemesh.nav import pursuit_kernels
+from rescuemesh.nav.controller import ControllerParams, command_on_part, limit_acceleration, rotate_toward
 from rescuemesh.nav.costmap import Costmap
 from rescuemesh.nav.path import Path
 from rescuemesh.nav.planner import Planner, make_planner
@@ -221,7 +222,7 @@ class NavigateToPose:
         n = max(2, math.ceil(gap / (0.5 * self.costmap.resolution)) + 1)
         if self.costmap.segment_any_lethal((end[0], end[1]), (goal.x, goal.y), n):  # every half cell
             return None
-        return Path.from_points(np.vstack([path.points, [[goal.x, goal.y]]]))
+        return path.extended_to(goal.x, goal.y)  # Path.from_points(np.vstack([path.points, [[goal.x, goal.y]]]))
 
     def cancel(self, now: float) -> None:
         """End the active goal CANCELED "canceled"; no-op when idle."""
@@ -261,10 +262,12 @@ class NavigateToPose:
             return (0.0, 0.0)
         path = g.path
         assert path is not None
-        line = path.polyline  # per-path geometry, computed once per plan
+        points, cum = np.ascontiguousarray(path.points, dtype=float), path.cum
         window = g.s_progress + p.controller.path_search_distance
-        g.s_progress, _ = line.project(pose.x, pose.y, s_min=g.s_progress, s_max=window)
-        goal_gap = math.hypot(line.xs[-1] - g.pose.x, line.ys[-1] - g.pose.y)
+        # Polyline.project(pose, s_min=s_progress, s_max=window), compiled
+        g.s_progress = pursuit_kernels.project(points, cum, pose.x, pose.y, g.s_progress, window)
+        ex, ey = points[-1].tolist()
+        goal_gap = math.hypot(ex - g.pose.x, ey - g.pose.y)
         remaining = max(0.0, path.length_m - g.s_progress) + goal_gap
         self._feedback = NavFeedback(g.goal_id, remaining, now)
 
@@ -280,8 +283,8 @@ class NavigateToPose:
         s_end = path.length_m
         if g.stop_distance > 0.0:
             s_end = path.length_m + goal_gap - g.stop_distance
-        local = line.slice(g.s_progress, s_end)
-        return compute_velocity(pose, local, self._scan_points, p.controller, current_speed=self._last_v)
+        # compute_velocity on the path's part ahead (Polyline.slice(s_progress, s_end)): one compiled call
+        return command_on_part(pose, points, cum, g.s_progress, s_end, self._scan_points, p.controller, self._last_v)
 
     # -- helpers --------------------------------------------------------------------------------
 
@@ -292,8 +295,7 @@ class NavigateToPose:
         # a goal in lethal space accepted via clear_radius is reached at the free cell the path ends in
         if g.path is None:
             return False
-        line = g.path.polyline
-        ex, ey = line.xs[-1], line.ys[-1]
+        ex, ey = g.path.points[-1].tolist()
         snapped = math.hypot(ex - g.pose.x, ey - g.pose.y) > 1e-6
         return snapped and math.hypot(ex - pose.x, ey - pose.y) <= tol
 

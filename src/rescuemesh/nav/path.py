@@ -3,11 +3,12 @@
 Owns: `Path`, `Polyline` and arc lengths. Must not know how a path was planned or how it is
 followed; numpy and plain math only (the arc lengths compiled: nav/kernels.py).
 
-`Polyline` answers the controller's per-tick questions (project the robot, a point at an arc
-length, the part ahead) in plain Python floats over the few segments concerned, from per-path data
-computed once: at 20 Hz on paths of a few dozen vertices, numpy's per-call overhead on tiny arrays
-would dominate. tests/nav/reference_polyline.py holds the same geometry over whole numpy arrays,
-and the tests check that the two agree to rounding.
+`Polyline` answers the controller's questions (project the robot, a point at an arc length, the
+part ahead) in plain Python floats over the few segments concerned. The navigation's every tick
+asks them compiled (nav/pursuit_kernels.py, the same arithmetic, checked against this class in
+tests/oracles/test_nav_pursuit.py); `compute_velocity` takes a Polyline as the path.
+tests/nav/reference_polyline.py holds the same geometry over whole numpy arrays, and the tests
+check that the two agree to rounding.
 """
 
 from __future__ import annotations
@@ -36,10 +37,19 @@ class Path:
 
     @classmethod
     def from_points(cls, points: np.ndarray) -> "Path":
-        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        pts = np.ascontiguousarray(points, dtype=float).reshape(-1, 2)  # the compiled controller reads it
         cum = cumulative_lengths(pts)
         path = cls(points=pts, length_m=float(cum[-1]))
         path.__dict__["cum"] = cum  # the cached property, known already
+        return path
+
+    def extended_to(self, x: float, y: float) -> "Path":
+        """This path with one more waypoint (x, y) m: `Path.from_points` of the points and (x, y),
+        without summing the earlier arc lengths again (compiled: nav/kernels.py, `append_vertex`)."""
+        points, cum = kernels.append_vertex(np.ascontiguousarray(self.points, dtype=float),
+                                            np.ascontiguousarray(self.cum, dtype=float), float(x), float(y))
+        path = Path(points=points, length_m=float(cum[-1]))
+        path.__dict__["cum"] = cum
         return path
 
     @property

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import abc
 import math
+from collections import OrderedDict
 from typing import Callable, ClassVar
 
 import numpy as np
@@ -90,6 +91,107 @@ def shortcut(
 #: A search window covering at least this share of the map searches the whole map at once.
 WHOLE_MAP_SHARE = 0.5
 
+#: Search graphs are built over arrays of rows and columns rounded up to a multiple of this (the
+#: rest impassable), so that windows of nearby sizes share one graph.
+GRAPH_BLOCK = 16
+#: Graphs a planner keeps, the least recently used given up first.
+GRAPH_SLOTS = 4
+
+
+def _graphs_read_costs_in_place() -> bool:
+    """Whether MCP_Geometric searches a float64 Fortran-ordered cost array in place (scikit-image
+    keeps `costs.astype(float64, copy=False).ravel("F")`, a view of such an array): new costs
+    written into it are then searched without building the graph again. Checked once."""
+    step = np.ones((2, 3), order="F")
+    mcp = MCP_Geometric(step, fully_connected=True)
+    step[0, 1] = np.inf
+    cum, _ = mcp.find_costs([(0, 0)], [(0, 2)])
+    return bool(cum[0, 2] > 2.0)  # around the blocked cell: 2 * sqrt(2); through it: 2
+
+
+def _traceback_offsets() -> np.ndarray | None:
+    """The steps MCP_Geometric's traceback array indexes (scikit-image's `make_offsets(2, True)`,
+    which it does not expose on the graph), when reading the path back with them gives what its
+    own `traceback` does on a probe search; else None (its `traceback` is then used). Checked once."""
+    try:
+        from skimage.graph._mcp import make_offsets
+
+        offsets = np.array(make_offsets(2, True), dtype=np.int64).reshape(-1, 2)
+    except (ImportError, TypeError, ValueError):
+        return None
+    costs = np.ones((6, 7), order="F")
+    costs[1:5, 3] = np.inf
+    mcp = MCP_Geometric(costs, fully_connected=True)
+    _, traceback = mcp.find_costs([(4, 1)], [(1, 5)], find_all_ends=True)
+    try:
+        ours = kernels.trace_back(traceback, 1, 5, offsets)
+    except ValueError:
+        return None
+    return offsets if [tuple(rc) for rc in ours.tolist()] == [tuple(rc) for rc in mcp.traceback((1, 5))] else None
+
+
+class SearchGraph:
+    """An `MCP_Geometric` over the step costs of a window of `shape` (rows, cols), built over a
+    float64 Fortran-ordered array of at least that shape whose cells beyond it are impassable
+    (inf): the search never pushes them, so it pushes and pops the window's cells in the same
+    order, with the same costs and ties, as a graph of the window's own shape (its cells are the
+    array's first rows and columns). `refill` makes it the graph of new step costs of the same or
+    a smaller shape without building a new MCP, when scikit-image searches the array in place:
+    building one costs in proportion to the array (0.1 ms for a 30 x 30 window, 1 ms for a
+    100 x 200 map), and a robot plans several times a second, mostly on a new scan.
+
+    A refilled graph searches as a new one would. MCP's `find_costs` resets the costs but not its
+    heap's entry count: a search that stopped at its goal leaves entries behind (costs reset to
+    inf), which a later search pops once it runs out of cells (no goal, or none reachable), each
+    pop writing inf over the cumulative cost of the cell the entry names. `refill` first runs a
+    search on all-impassable costs, which pops every leftover and leaves the heap empty at its
+    initial size, as a new graph's.
+    """
+
+    in_place: ClassVar[bool | None] = None  # _graphs_read_costs_in_place(), on first use
+    offsets: ClassVar[np.ndarray | None | bool] = False  # _traceback_offsets(), on first use
+
+    def __init__(self, capacity: tuple[int, int]) -> None:
+        if SearchGraph.in_place is None:
+            SearchGraph.in_place = _graphs_read_costs_in_place()
+        if SearchGraph.offsets is False:
+            SearchGraph.offsets = _traceback_offsets()
+        self._traceback: np.ndarray | None = None  # of the last search
+        self.step = np.full(capacity, np.inf, order="F")
+        self.shape = capacity
+        self._mcp: MCP_Geometric | None = None
+        self._used = False
+        self.contents = object()  # a new token at every refill: who kept a graph knows if it still holds their costs
+
+    def refill(self, fill: Callable[[np.ndarray], np.ndarray], shape: tuple[int, int]) -> np.ndarray:
+        """Empty the heap, then call `fill(step)` (writes the step costs of `shape` into the first
+        rows and columns of `step` and inf everywhere else; returns what the graph's user keeps)."""
+        if self._mcp is not None and self._used and SearchGraph.in_place:
+            self.step.fill(np.inf)
+            self._mcp.find_costs([(0, 0)])  # pops every entry left by the last search
+        kept = fill(self.step)
+        self.shape = shape
+        self._used = False
+        self.contents = object()
+        if self._mcp is None or not SearchGraph.in_place:
+            self._mcp = MCP_Geometric(self.step, fully_connected=True)
+        return kept
+
+    def find_costs(self, starts: list[tuple[int, int]], ends: list[tuple[int, int]] | None = None) -> np.ndarray:
+        """MCP's cumulative costs from `starts` over the window (inf where the search did not
+        finish), stopping when every one of `ends` is reached; a view the next search overwrites."""
+        self._used = True
+        cum, self._traceback = self._mcp.find_costs(starts, ends, find_all_ends=True)
+        return cum[: self.shape[0], : self.shape[1]]
+
+    def traceback(self, end: tuple[int, int]) -> list[tuple[int, int]]:
+        """The cells of the cheapest path from the last search's starts to `end` (reached), start
+        first: MCP's `traceback`, read from its traceback array in one compiled call."""
+        if SearchGraph.offsets is None or self._traceback is None:
+            return [tuple(rc) for rc in self._mcp.traceback(end)]
+        cells = kernels.trace_back(self._traceback, int(end[0]), int(end[1]), SearchGraph.offsets)
+        return [(r, c) for r, c in cells.tolist()]
+
 
 @register_planner("mcp")
 class MCPPlanner(Planner):
@@ -125,7 +227,9 @@ class MCPPlanner(Planner):
     Only the window's costs are stamped with scan obstacles (`Costmap.cost_in`). The coarse grid
     and its MCP graph are kept for the last window and costs planned on (the same static layer and
     obstacle cells): costmaps are never modified. Searches on the kept graph give the same paths,
-    as `find_costs` resets it.
+    as `find_costs` resets it. A new window or new costs refill one of the planner's few
+    `SearchGraph`s (by size) instead of building a new graph: the same searches, without the cost
+    of building one.
     """
 
     def __init__(
@@ -153,21 +257,23 @@ class MCPPlanner(Planner):
         self.smooth = smooth
         self.window_margin_m = window_margin_m
         self.first_margin_m = first_margin_m
-        # (window, static cost, obstacle cells, coarse lethal, graph) of the last search
+        # (window, static cost, obstacle cells, coarse lethal, graph, its contents then) of the last search
         self._graph: tuple | None = None
         # (static cost, goal's coarse cell, static cost from every coarse cell to it) of the last goal
         self._field: tuple | None = None
+        self._graphs: OrderedDict[tuple[int, int], SearchGraph] = OrderedDict()  # by capacity, recent last
+        self._field_graph: SearchGraph | None = None  # the goal field's own: its costs outlive other searches
 
-    def _search_graph(self, costmap: Costmap, window: tuple[int, int, int, int]) -> tuple[np.ndarray, MCP_Geometric]:
+    def _search_graph(self, costmap: Costmap, window: tuple[int, int, int, int]) -> tuple[np.ndarray, SearchGraph]:
         """(coarse lethal mask, MCP graph over the coarse costs) of `window` (coarse rows r0:r1,
         cols c0:c1) of `costmap`, reused for the same window and costs."""
         kept = self._graph
         if (kept is None or kept[0] != window or kept[1] is not costmap.static_cost
-                or not np.array_equal(kept[2], costmap.obstacle_cells)):
+                or not np.array_equal(kept[2], costmap.obstacle_cells) or kept[4].contents is not kept[5]):
             k = self.downsample
             r0, r1, c0, c1 = window
             lethal, graph = self._graph_over(costmap.cost_in(r0 * k, r1 * k, c0 * k, c1 * k), window)
-            self._graph = kept = (window, costmap.static_cost, costmap.obstacle_cells, lethal, graph)
+            self._graph = kept = (window, costmap.static_cost, costmap.obstacle_cells, lethal, graph, graph.contents)
         return kept[3], kept[4]
 
     def _goal_field(self, costmap: Costmap, goal: tuple[int, int]) -> np.ndarray:
@@ -175,22 +281,41 @@ class MCPPlanner(Planner):
         `goal` on the static layer alone (inf where unreachable), kept for the last goal."""
         kept = self._field
         if kept is None or kept[0] is not costmap.static_cost or kept[1] != goal:
-            _, graph = self._graph_over(costmap.static_cost, self._whole(costmap))
-            field, _ = graph.find_costs([goal])  # the same step costs both ways: the cost to the goal
+            whole = self._whole(costmap)
+            if self._field_graph is None or self._field_graph.step.shape != (whole[1], whole[3]):
+                self._field_graph = SearchGraph((whole[1], whole[3]))
+            _, graph = self._graph_over(costmap.static_cost, whole, self._field_graph)
+            field = graph.find_costs([goal])  # the same step costs both ways: the cost to the goal
             self._field = kept = (costmap.static_cost, goal, field)
         return kept[2]
 
-    def _graph_over(self, cost: np.ndarray, window: tuple[int, int, int, int]) -> tuple[np.ndarray, MCP_Geometric]:
+    def _graph_over(self, cost: np.ndarray, window: tuple[int, int, int, int],
+                    graph: SearchGraph | None = None) -> tuple[np.ndarray, SearchGraph]:
         """(coarse lethal mask, MCP graph) of the full-resolution costs `cost` (float32, clipped to
         the map) of `window`: each coarse cell holds the highest cost of its k x k block (blocks past
         the map's edge count as lethal), a step into it costs 1 + cost_weight * that (float32), inf
-        when lethal. One compiled pass (nav/kernels.py, `coarse_step_costs`)."""
+        when lethal. One compiled pass (nav/kernels.py, `coarse_step_costs`), into `graph` or one of
+        the planner's graphs (the least recently used of its size, or a new one)."""
         k = self.downsample
         r0, r1, c0, c1 = window
         rows, cols = (r1 - r0, c1 - c0) if k > 1 else cost.shape
-        lethal, step = kernels.coarse_step_costs(cost.astype(np.float32, copy=False), k, rows, cols,
-                                                 np.float32(self.cost_weight))
-        return lethal, MCP_Geometric(step, fully_connected=True)
+        if graph is None:
+            graph = self._graph_for((rows, cols))
+        cost32, weight = cost.astype(np.float32, copy=False), np.float32(self.cost_weight)
+        lethal = graph.refill(lambda step: kernels.coarse_step_costs(cost32, k, rows, cols, weight, step),
+                              (rows, cols))
+        return lethal, graph
+
+    def _graph_for(self, shape: tuple[int, int]) -> SearchGraph:
+        """A graph of the planner's for a window of `shape`: of its size rounded up to GRAPH_BLOCK."""
+        capacity = tuple(-(-n // GRAPH_BLOCK) * GRAPH_BLOCK for n in shape)
+        graph = self._graphs.pop(capacity, None)
+        if graph is None:
+            graph = SearchGraph(capacity)
+            if len(self._graphs) >= GRAPH_SLOTS:
+                self._graphs.popitem(last=False)
+        self._graphs[capacity] = graph
+        return graph
 
     def _whole(self, costmap: Costmap) -> tuple[int, int, int, int]:
         """The window of the whole map's coarse cells."""
@@ -315,11 +440,11 @@ class MCPPlanner(Planner):
         cost = 0.0
         cum = np.full(lethal.shape, math.inf)
         if goal_rc != start_rc:
-            cum, _ = mcp.find_costs([start_rc], [goal_rc], find_all_ends=True)
+            cum = mcp.find_costs([start_rc], [goal_rc])
             cost = float(cum[goal_rc])
             if not math.isfinite(cost):
                 return None
-            cells = [tuple(rc) for rc in mcp.traceback(goal_rc)]
+            cells = mcp.traceback(goal_rc)
         pts = [centre(rc) for rc in cells]
         start_xy = (start.x, start.y)
         start_free = costmap.is_free(start.x, start.y)
@@ -352,17 +477,13 @@ def _exit_bound(cum: np.ndarray, window: tuple[int, int, int, int], goal: tuple[
     coarse cell of the whole map to the goal on the static layer), their field. inf when no side
     borders a cell of the map."""
     r0, r1, c0, c1 = window
-    h, w = cum.shape
-    gr, gc = goal
-    in_row, in_col = np.arange(w) - gc, np.arange(h) - gr  # offsets from the goal along a side
-    sides = ((np.s_[0, :], gr + 2, in_row, r0 > whole[0]), (np.s_[-1, :], h + 1 - gr, in_row, r1 < whole[1]),
-             (np.s_[:, 0], gc + 2, in_col, c0 > whole[2]), (np.s_[:, -1], w + 1 - gc, in_col, c1 < whole[3]))
-    bound = math.inf
-    for edge, across, along, present in sides:
-        if present:
-            rest = np.hypot(across, along) if field is None else field[r0:r1, c0:c1][edge]
-            bound = min(bound, float(np.min(cum[edge] + rest)))
-    return bound
+    sides = (r0 > whole[0], r1 < whole[1], c0 > whole[2], c1 < whole[3])
+    # one compiled pass over the four sides (nav/kernels.py, exit_bound); tests/oracles/nav.py has the numpy
+    return kernels.exit_bound(cum, r0, r1, c0, c1, int(goal[0]), int(goal[1]), *sides,
+                              _NO_FIELD if field is None else field, field is not None)
+
+
+_NO_FIELD = np.zeros((0, 0))
 
 
 @register_planner("straight")
