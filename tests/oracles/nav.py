@@ -1,12 +1,12 @@
 """Oracles of the navigation kernels (nav/kernels.py, pursuit_kernels.py, body_kernels.py): the numpy
 and Python that nav/costmap.py, nav/controller.py, nav/navigate.py, nav/planner.py and body.py ran
 before they were compiled, as functions of plain arrays (or of a Costmap, for the planner's
-shortcutting, and of a Polyline, for the controller)."""
+shortcutting), and the Python Polyline geometry the controller ran on."""
 
 from __future__ import annotations
 
 import math
-from bisect import bisect_right
+from bisect import bisect_left, bisect_right
 
 import numpy as np
 
@@ -14,7 +14,8 @@ from rescuemesh.geometry import Pose2D, wrap_angle
 from rescuemesh.nav.controller import ControllerParams, obstacle_reach, obstacle_speed_scale, rotate_toward
 from rescuemesh.nav.costmap import LETHAL
 from rescuemesh.nav.kernels import scan_clearance
-from rescuemesh.nav.path import Polyline
+from rescuemesh.nav.path import Polyline as PackagePolyline
+from rescuemesh.nav.path import cumulative_lengths
 
 
 def cells_of(xy, origin_xy, resolution, shape):
@@ -236,6 +237,102 @@ def cumulative_lengths(points):
 # -- the controller (nav/controller.py before nav/pursuit_kernels.py) ---------------------------------
 
 
+class Polyline:
+    """nav/path.py's Polyline before its geometry was compiled (nav/pursuit_kernels.py): a polyline in
+    plain Python floats with its per-vertex arc lengths.
+
+    `xs`, `ys`: vertex coordinates in m (N >= 1); `cum`: arc length in m at each vertex; `length`:
+    the total. `project`, `point_at` and `slice` only visit the segments in the requested arc-length
+    window (found by bisection).
+    """
+
+    __slots__ = ("xs", "ys", "cum", "length")
+
+    def __init__(self, xs: list[float], ys: list[float], cum: list[float]) -> None:
+        self.xs, self.ys, self.cum = xs, ys, cum
+        self.length = cum[-1] if cum else 0.0
+
+    @classmethod
+    def from_points(cls, points: np.ndarray, *, cum: np.ndarray | None = None) -> "Polyline":
+        """From an (N, 2) array in m; `cum` its `cumulative_lengths` when already known."""
+        pts = np.asarray(points, dtype=float).reshape(-1, 2)
+        cum = cumulative_lengths(pts) if cum is None else cum
+        return cls(pts[:, 0].tolist(), pts[:, 1].tolist(), cum.tolist())
+
+    @classmethod
+    def from_vertices(cls, xs: list[float], ys: list[float]) -> "Polyline":
+        """From vertex coordinate lists in m (N >= 1); arc lengths summed as `cumulative_lengths` does."""
+        cum, s = [0.0], 0.0
+        for i in range(1, len(xs)):
+            s += math.hypot(xs[i] - xs[i - 1], ys[i] - ys[i - 1])
+            cum.append(s)
+        return cls(xs, ys, cum)
+
+    def __len__(self) -> int:
+        return len(self.xs)
+
+    def to_array(self) -> np.ndarray:
+        """The vertices as an (N, 2) array in m."""
+        return np.column_stack([self.xs, self.ys]).reshape(-1, 2)
+
+    def point_at(self, s: float) -> tuple[float, float]:
+        """(x, y) in m at arc length `s` m, clamped to the ends (`np.interp`'s arithmetic)."""
+        cum, xs, ys = self.cum, self.xs, self.ys
+        s = min(max(s, 0.0), self.length)
+        j = bisect_right(cum, s) - 1
+        if j >= len(cum) - 1 or cum[j] == s:
+            return xs[j], ys[j]
+        h = cum[j + 1] - cum[j]
+        return (xs[j + 1] - xs[j]) / h * (s - cum[j]) + xs[j], (ys[j + 1] - ys[j]) / h * (s - cum[j]) + ys[j]
+
+    def project(self, x: float, y: float, *, s_min: float = 0.0, s_max: float = math.inf) -> tuple[float, float]:
+        """Project the point (x, y) m onto the polyline: (arc length s in m of the nearest point,
+        distance in m to it), searching only segments overlapping [s_min, s_max], so a path that
+        passes near itself twice is not short-cut (Nav2's `max_robot_pose_search_dist`)."""
+        xs, ys, cum = self.xs, self.ys, self.cum
+        n = len(xs)
+        if n == 1:
+            return 0.0, math.hypot(x - xs[0], y - ys[0])
+        lo, hi = s_min, max(s_min, s_max)
+        # segments i with cum[i + 1] >= lo and cum[i] <= hi; none: the last one, clamped
+        first = max(bisect_left(cum, lo, 1) - 1, 0)
+        last = min(bisect_right(cum, hi) - 1, n - 2)
+        if first > last:
+            first = last = n - 2
+        best_s, best_d = 0.0, math.inf
+        for i in range(first, last + 1):
+            x0, y0, c0, c1 = xs[i], ys[i], cum[i], cum[i + 1]
+            dx, dy = xs[i + 1] - x0, ys[i + 1] - y0
+            len2 = dx * dx + dy * dy
+            t = ((x - x0) * dx + (y - y0) * dy) / (len2 if len2 > 0.0 else 1.0)
+            s = c0 + min(max(t, 0.0), 1.0) * math.sqrt(len2)
+            s = min(max(s, max(c0, lo)), min(c1, hi))
+            # point_at(s), inlined: s lies on this segment (its ends are its vertices)
+            if s == c1:
+                px, py = xs[i + 1], ys[i + 1]
+            elif s == c0:
+                px, py = x0, y0
+            else:
+                px, py = dx / (c1 - c0) * (s - c0) + x0, dy / (c1 - c0) * (s - c0) + y0
+            d = math.hypot(px - x, py - y)
+            if d < best_d or i == first:
+                best_s, best_d = s, d
+        return best_s, best_d
+
+    def slice(self, s_start: float = 0.0, s_end: float = math.inf) -> "Polyline":
+        """The part between arc lengths `s_start` and `s_end` m, as a new Polyline (N >= 1)."""
+        cum = self.cum
+        s0 = min(max(s_start, 0.0), self.length)
+        s1 = min(max(s_end, s0), self.length)
+        i0, i1 = bisect_right(cum, s0), bisect_left(cum, s1)  # inner vertices: s0 < cum < s1
+        x0, y0 = self.point_at(s0)
+        if i0 >= i1 and s1 - s0 <= 1e-9:
+            return Polyline([x0], [y0], [0.0])
+        x1, y1 = self.point_at(s1)
+        return Polyline.from_vertices([x0, *self.xs[i0:i1], x1], [y0, *self.ys[i0:i1], y1])
+
+
+
 def polyline_slice_command(pose, points, cum, s_start, s_end, scan_points, params, current_speed):
     """What NavigateToPose ran every tick: compute_velocity on the path's part between two arc lengths."""
     local = Polyline.from_points(points, cum=cum).slice(s_start, s_end)
@@ -263,6 +360,8 @@ def compute_velocity(
 
     (nav/controller.py's compute_velocity before it was compiled: plain floats on a Polyline.)
     """
+    if isinstance(path, PackagePolyline):
+        path = Polyline(path.xs, path.ys, path.cum)
     line = path if isinstance(path, Polyline) else Polyline.from_points(path)
     if len(line) == 0:
         return (0.0, 0.0)

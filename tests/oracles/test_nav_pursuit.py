@@ -73,7 +73,7 @@ def _check_part(pose, path, s_start, s_end, scan, speed):
 
 def _check_project(path, x, y, s_min, s_max):
     got = _outcome(project, path.points, path.cum, x, y, s_min, s_max)
-    want = _outcome(Polyline.from_points(path.points, cum=path.cum).project, x, y, s_min=s_min, s_max=s_max)
+    want = _outcome(ref.Polyline.from_points(path.points, cum=path.cum).project, x, y, s_min=s_min, s_max=s_max)
     assert got == (want if isinstance(want, type) else want[0]), (got, want)
     return got
 
@@ -147,5 +147,29 @@ def test_the_controller_is_the_oracle_on_ticks_recorded_from_a_follow_run(monkey
         moving += got[0] > 0.0
     assert moving > 300
     for points, cum, x, y, s_min, s_max in projections:
-        want, _ = Polyline.from_points(points, cum=cum).project(x, y, s_min=s_min, s_max=s_max)
+        want, _ = ref.Polyline.from_points(points, cum=cum).project(x, y, s_min=s_min, s_max=s_max)
         assert proj(points, cum, x, y, s_min, s_max) == want
+
+
+def test_the_package_polyline_is_the_python_one_it_replaced():
+    # Polyline.point_at, .project and .slice used to be Python beside the compiled kernels (two
+    # implementations of one geometry); they now call the kernels and must answer as the Python did
+    rng = np.random.default_rng(44)
+    for _ in range(1500):
+        path = _random_path(rng)
+        got_line, want_line = Polyline.from_points(path.points, cum=path.cum), ref.Polyline.from_points(path.points,
+                                                                                                      cum=path.cum)
+        length = path.length_m
+        x, y = (float(v) for v in path.points[0] + rng.normal(0.0, 1.0, 2))
+        for s in (-0.5, 0.0, length, length + 1.0, *rng.uniform(0.0, length + 1e-9, 3).tolist()):
+            assert got_line.point_at(s) == want_line.point_at(s), s
+        s_min = float(rng.uniform(-0.5, length + 0.5))
+        for s_max in (s_min + 2.0, math.inf):
+            assert _outcome(got_line.project, x, y, s_min=s_min, s_max=s_max) == \
+                _outcome(want_line.project, x, y, s_min=s_min, s_max=s_max)
+        s0 = float(rng.choice([0.0, -0.5, length, *rng.uniform(0.0, length, 2)]))
+        for s1 in (length, s0, s0 + 1e-10, float(rng.uniform(-0.2, length + 0.5))):
+            got, want = got_line.slice(s0, s1), want_line.slice(s0, s1)
+            assert (got.xs, got.ys, got.cum, got.length) == (want.xs, want.ys, want.cum, want.length), (s0, s1)
+    with pytest.raises(ValueError, match="empty Polyline"):
+        Polyline([], [], []).point_at(0.0)

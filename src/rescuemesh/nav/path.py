@@ -14,13 +14,12 @@ check that the two agree to rounding.
 from __future__ import annotations
 
 import math
-from bisect import bisect_left, bisect_right
 from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
 
-from rescuemesh.nav import kernels
+from rescuemesh.nav import kernels, pursuit_kernels
 
 
 @dataclass(frozen=True, eq=False)
@@ -111,58 +110,24 @@ class Polyline:
         """The vertices as an (N, 2) array in m."""
         return np.column_stack([self.xs, self.ys]).reshape(-1, 2)
 
+    def _arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """The vertices ((N, 2) m) and arc lengths as the compiled kernels take them (N >= 1)."""
+        if not self.xs:
+            raise ValueError("an empty Polyline has no points")
+        return np.column_stack([self.xs, self.ys]).reshape(-1, 2), np.asarray(self.cum, dtype=float)
+
     def point_at(self, s: float) -> tuple[float, float]:
-        """(x, y) in m at arc length `s` m, clamped to the ends (`np.interp`'s arithmetic)."""
-        cum, xs, ys = self.cum, self.xs, self.ys
-        s = min(max(s, 0.0), self.length)
-        j = bisect_right(cum, s) - 1
-        if j >= len(cum) - 1 or cum[j] == s:
-            return xs[j], ys[j]
-        h = cum[j + 1] - cum[j]
-        return (xs[j + 1] - xs[j]) / h * (s - cum[j]) + xs[j], (ys[j + 1] - ys[j]) / h * (s - cum[j]) + ys[j]
+        """(x, y) in m at arc length `s` m, clamped to the ends (`np.interp`'s arithmetic; compiled:
+        nav/pursuit_kernels.py, as every geometry below)."""
+        return pursuit_kernels.point_at(*self._arrays(), float(s))
 
     def project(self, x: float, y: float, *, s_min: float = 0.0, s_max: float = math.inf) -> tuple[float, float]:
         """Project the point (x, y) m onto the polyline: (arc length s in m of the nearest point,
         distance in m to it), searching only segments overlapping [s_min, s_max], so a path that
         passes near itself twice is not short-cut (Nav2's `max_robot_pose_search_dist`)."""
-        xs, ys, cum = self.xs, self.ys, self.cum
-        n = len(xs)
-        if n == 1:
-            return 0.0, math.hypot(x - xs[0], y - ys[0])
-        lo, hi = s_min, max(s_min, s_max)
-        # segments i with cum[i + 1] >= lo and cum[i] <= hi; none: the last one, clamped
-        first = max(bisect_left(cum, lo, 1) - 1, 0)
-        last = min(bisect_right(cum, hi) - 1, n - 2)
-        if first > last:
-            first = last = n - 2
-        best_s, best_d = 0.0, math.inf
-        for i in range(first, last + 1):
-            x0, y0, c0, c1 = xs[i], ys[i], cum[i], cum[i + 1]
-            dx, dy = xs[i + 1] - x0, ys[i + 1] - y0
-            len2 = dx * dx + dy * dy
-            t = ((x - x0) * dx + (y - y0) * dy) / (len2 if len2 > 0.0 else 1.0)
-            s = c0 + min(max(t, 0.0), 1.0) * math.sqrt(len2)
-            s = min(max(s, max(c0, lo)), min(c1, hi))
-            # point_at(s), inlined: s lies on this segment (its ends are its vertices)
-            if s == c1:
-                px, py = xs[i + 1], ys[i + 1]
-            elif s == c0:
-                px, py = x0, y0
-            else:
-                px, py = dx / (c1 - c0) * (s - c0) + x0, dy / (c1 - c0) * (s - c0) + y0
-            d = math.hypot(px - x, py - y)
-            if d < best_d or i == first:
-                best_s, best_d = s, d
-        return best_s, best_d
+        return pursuit_kernels.project_and_distance(*self._arrays(), float(x), float(y), float(s_min), float(s_max))
 
     def slice(self, s_start: float = 0.0, s_end: float = math.inf) -> "Polyline":
         """The part between arc lengths `s_start` and `s_end` m, as a new Polyline (N >= 1)."""
-        cum = self.cum
-        s0 = min(max(s_start, 0.0), self.length)
-        s1 = min(max(s_end, s0), self.length)
-        i0, i1 = bisect_right(cum, s0), bisect_left(cum, s1)  # inner vertices: s0 < cum < s1
-        x0, y0 = self.point_at(s0)
-        if i0 >= i1 and s1 - s0 <= 1e-9:
-            return Polyline([x0], [y0], [0.0])
-        x1, y1 = self.point_at(s1)
-        return Polyline.from_vertices([x0, *self.xs[i0:i1], x1], [y0, *self.ys[i0:i1], y1])
+        xs, ys, cum = pursuit_kernels.slice_part(*self._arrays(), float(s_start), float(s_end))
+        return Polyline(xs.tolist(), ys.tolist(), cum.tolist())

@@ -138,9 +138,9 @@ def _point_at(xs, ys, cum, n, s):
 
 @compiled()
 def _project(xs, ys, cum, n, x, y, s_min, s_max):
-    """Polyline.project: the arc length of the point nearest (x, y) on the segments overlapping [s_min, s_max]."""
+    """(arc length, distance) of the point nearest (x, y) on the segments overlapping [s_min, s_max]."""
     if n == 1:
-        return 0.0
+        return 0.0, py_hypot(x - xs[0], y - ys[0])
     lo, hi = s_min, _max(s_min, s_max)
     first = max(_bisect_left(cum, n, lo, 1) - 1, 0)
     last = min(_bisect_right(cum, n, hi, 0) - 1, n - 2)
@@ -163,14 +163,26 @@ def _project(xs, ys, cum, n, x, y, s_min, s_max):
         d = py_hypot(px - x, py - y)
         if d < best_d or i == first:
             best_s, best_d = s, d
-    return best_s
+    return best_s, best_d
 
 
 @compiled_on_first_call("f8(f8[:, ::1], f8[::1], f8, f8, f8, f8)")
 def project(points, cum, x, y, s_min, s_max):
     """Polyline.project(x, y, s_min=s_min, s_max=s_max)[0] of the polyline `points` ((N, 2), N >= 1,
     arc lengths `cum`): the arc length in m of the point nearest (x, y) in the window."""
+    return _project(points[:, 0], points[:, 1], cum, points.shape[0], x, y, s_min, s_max)[0]
+
+
+@compiled_on_first_call("UniTuple(f8, 2)(f8[:, ::1], f8[::1], f8, f8, f8, f8)")
+def project_and_distance(points, cum, x, y, s_min, s_max):
+    """`project` with the distance in m from (x, y) to the point found (Polyline.project)."""
     return _project(points[:, 0], points[:, 1], cum, points.shape[0], x, y, s_min, s_max)
+
+
+@compiled_on_first_call("UniTuple(f8, 2)(f8[:, ::1], f8[::1], f8)")
+def point_at(points, cum, s):
+    """(x, y) at arc length `s` of the polyline `points` (arc lengths `cum`), clamped to the ends."""
+    return _point_at(points[:, 0], points[:, 1], cum, points.shape[0], s)
 
 
 @compiled()
@@ -213,7 +225,7 @@ def _command(xs, ys, cum, n, x, y, yaw, scan, prm, speed, has_goal_yaw, goal_yaw
         if not has_goal_yaw:
             return 0.0, 0.0
         return 0.0, _rotate_toward((goal_yaw - yaw + math.pi) % (2.0 * math.pi) - math.pi, prm)
-    s_robot = _project(xs, ys, cum, n, x, y, 0.0, prm[SEARCH])
+    s_robot = _project(xs, ys, cum, n, x, y, 0.0, prm[SEARCH])[0]
     remaining = cum[n - 1] - s_robot
     lookahead = _min(prm[MAX_LOOKAHEAD], _max(prm[MIN_LOOKAHEAD], speed * prm[LOOKAHEAD_TIME]))
     tx, ty = _lookahead_point(xs, ys, cum, n, x, y, s_robot, lookahead)
@@ -258,11 +270,12 @@ def command(points, cum, x, y, yaw, scan, prm, speed, has_goal_yaw, goal_yaw, xy
                     goal_yaw, xy_tolerance)
 
 
-@compiled_on_first_call("UniTuple(f8, 2)(f8[:, ::1], f8[::1], f8, f8, f8, f8, f8, f8[:, ::1], f8[::1], f8)")
-def command_on_part(points, cum, s_start, s_end, x, y, yaw, scan, prm, speed):
-    """`command` on Polyline.slice(s_start, s_end) of the polyline `points` (arc lengths `cum`):
-    its vertices the points at both arc lengths and those strictly between, its arc lengths summed
-    with Python's hypot (Polyline.from_vertices). No goal yaw, no xy tolerance."""
+@compiled()
+def _slice(points, cum, s_start, s_end):
+    """Polyline.slice(s_start, s_end) of the polyline `points` (arc lengths `cum`): (xs, ys, arc
+    lengths, vertices used). Its vertices are the points at both arc lengths and those strictly
+    between (one point when the part is shorter than 1e-9 m and holds no vertex), its arc lengths
+    summed with Python's hypot (Polyline.from_vertices)."""
     n = points.shape[0]
     length = cum[n - 1]
     s0 = _min(_max(s_start, 0.0), length)
@@ -276,7 +289,7 @@ def command_on_part(points, cum, s_start, s_end, x, y, yaw, scan, prm, speed):
     lc = np.empty(inner + 2)
     lx[0], ly[0], lc[0] = x0, y0, 0.0
     if i0 >= i1 and s1 - s0 <= 1e-9:
-        return _command(lx, ly, lc, 1, x, y, yaw, scan, prm, speed, False, 0.0, 0.0)
+        return lx, ly, lc, 1
     for k in range(inner):
         lx[k + 1], ly[k + 1] = xs[i0 + k], ys[i0 + k]
     lx[inner + 1], ly[inner + 1] = _point_at(xs, ys, cum, n, s1)
@@ -284,4 +297,19 @@ def command_on_part(points, cum, s_start, s_end, x, y, yaw, scan, prm, speed):
     for k in range(1, inner + 2):
         s += py_hypot(lx[k] - lx[k - 1], ly[k] - ly[k - 1])
         lc[k] = s
-    return _command(lx, ly, lc, inner + 2, x, y, yaw, scan, prm, speed, False, 0.0, 0.0)
+    return lx, ly, lc, inner + 2
+
+
+@compiled_on_first_call("Tuple((f8[::1], f8[::1], f8[::1]))(f8[:, ::1], f8[::1], f8, f8)")
+def slice_part(points, cum, s_start, s_end):
+    """Polyline.slice: the part of the polyline `points` between two arc lengths, as (xs, ys, arc lengths)."""
+    lx, ly, lc, m = _slice(points, cum, s_start, s_end)
+    return lx[:m], ly[:m], lc[:m]
+
+
+@compiled_on_first_call("UniTuple(f8, 2)(f8[:, ::1], f8[::1], f8, f8, f8, f8, f8, f8[:, ::1], f8[::1], f8)")
+def command_on_part(points, cum, s_start, s_end, x, y, yaw, scan, prm, speed):
+    """`command` on Polyline.slice(s_start, s_end) of the polyline `points` (arc lengths `cum`, `_slice`).
+    No goal yaw, no xy tolerance."""
+    lx, ly, lc, m = _slice(points, cum, s_start, s_end)
+    return _command(lx, ly, lc, m, x, y, yaw, scan, prm, speed, False, 0.0, 0.0)
