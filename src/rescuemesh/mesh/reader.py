@@ -64,50 +64,22 @@ class FrameReader:
             if opened is None:
                 return None
             data, epoch = opened
-        stats = self.stats
-        try:
-            view = read_on_air(data)
-        except FrameError as exc:
-            name = _DROP_COUNTER.get(type(exc), "dropped_malformed")
-            setattr(stats, name, getattr(stats, name) + 1)
+        read = self._parse(data, epoch, self.sealer is not None)
+        if read is None:
             return None
-        if view.src == self.address:
-            stats.dropped_own += 1
-            return None
-        key = cache_key(data, None if self.sealer is None else epoch)
-        read = self._recent[heard] = (data, view, key, epoch, [None])
+        self._recent[heard] = read
         if len(self._recent) > MAX_OPENED_FRAMES:
             del self._recent[next(iter(self._recent))]
         return read
 
     def _read_shared(self, heard: bytes, reads: dict) -> Read | None:
         """read() through the sealer's shared results (module comment): the same checks, counters
-        and result as _open and the rest of read(), a frame opened and parsed once per team."""
-        stats = self.stats
-        if len(heard) < FRAME_OVERHEAD_BYTES or not heard[0] & AUTH_BIT:
-            stats.dropped_unauthenticated += 1
+        and result as _open and _parse, a frame opened and parsed once per team. Each candidate
+        epoch that opened before is found in `reads`, in the order _open would try it."""
+        candidates = self._candidates(heard)
+        if candidates is None:
             return None
-        src = heard[2]
-        if src == self.address:
-            stats.dropped_own += 1
-            return None
-        announced = self.sealer.heartbeat_epoch(heard)
-        if announced is not None:
-            read = reads.get((heard, announced))
-            return read if read is not None else self._open_shared(heard, (announced,), reads)
-        known = self._replay.epoch_of(src)
-        if known is None:
-            stats.dropped_unknown_epoch += 1
-            return None
-        read = reads.get((heard, known))
-        if read is not None:
-            return read
-        return self._open_shared(heard, (known, (known + 1) & MAX_EPOCH), reads)  # the source may have wrapped
-
-    def _open_shared(self, heard: bytes, candidates: tuple[int, ...], reads: dict) -> Read | None:
-        """Open `heard` under each candidate epoch in turn (one that opened before is found in
-        `reads`), parse it, and keep the result in `reads`; None (counted) as read() says."""
-        sealer, stats = self.sealer, self.stats
+        sealer = self.sealer
         for epoch in candidates:
             read = reads.get((heard, epoch))
             if read is not None:
@@ -116,21 +88,29 @@ class FrameReader:
                 data = sealer.open(heard, epoch)
             except FrameError:
                 continue
-            try:
-                view = read_on_air(data)
-            except FrameError as exc:
-                name = _DROP_COUNTER.get(type(exc), "dropped_malformed")
-                setattr(stats, name, getattr(stats, name) + 1)
-                return None
-            if view.src == self.address:  # unreachable: the source is in the clear, checked above
-                stats.dropped_own += 1
-                return None
-            read = reads[(heard, epoch)] = (data, view, cache_key(data, epoch), epoch, [None])
-            if len(reads) > sealer.remember:
-                del reads[next(iter(reads))]
+            read = self._parse(data, epoch, True)
+            if read is not None:
+                reads[(heard, epoch)] = read
+                if len(reads) > sealer.remember:
+                    del reads[next(iter(reads))]
             return read
-        stats.dropped_forged += 1
+        self.stats.dropped_forged += 1
         return None
+
+    def _parse(self, data: bytes, epoch: int, sealed: bool) -> Read | None:
+        """The Read of CRC frame `data` opened under `epoch`, or None (counted) for a malformed frame
+        or our own. The cache key starts with the epoch when `sealed`."""
+        stats = self.stats
+        try:
+            view = read_on_air(data)
+        except FrameError as exc:
+            name = _DROP_COUNTER.get(type(exc), "dropped_malformed")
+            setattr(stats, name, getattr(stats, name) + 1)
+            return None
+        if view.src == self.address:  # sealed: unreachable, the source is in the clear and checked first
+            stats.dropped_own += 1
+            return None
+        return data, view, cache_key(data, epoch if sealed else None), epoch, [None]
 
     def forget(self) -> None:
         """Forget the frames read so far: a source's epoch moved on, and a frame of its old epoch
@@ -139,6 +119,20 @@ class FrameReader:
 
     def _open(self, data: bytes) -> tuple[bytes, int] | None:
         """The CRC frame inside an authenticated one and its epoch, or None (counted)."""
+        candidates = self._candidates(data)
+        if candidates is None:
+            return None
+        for epoch in candidates:
+            try:
+                return self.sealer.open(data, epoch), epoch
+            except FrameError:
+                continue
+        self.stats.dropped_forged += 1
+        return None
+
+    def _candidates(self, data: bytes) -> tuple[int, ...] | None:
+        """The epochs an authenticated frame may open under, in the order to try them, or None
+        (counted) for one not authenticated, our own, or from a source whose epoch is not known."""
         stats = self.stats
         if len(data) < FRAME_OVERHEAD_BYTES or not data[0] & AUTH_BIT:
             stats.dropped_unauthenticated += 1
@@ -149,17 +143,9 @@ class FrameReader:
             return None
         announced = self.sealer.heartbeat_epoch(data)
         if announced is not None:
-            candidates = (announced,)
-        else:
-            known = self._replay.epoch_of(src)
-            if known is None:
-                stats.dropped_unknown_epoch += 1
-                return None
-            candidates = (known, (known + 1) & MAX_EPOCH)  # the source may have wrapped since
-        for epoch in candidates:
-            try:
-                return self.sealer.open(data, epoch), epoch
-            except FrameError:
-                continue
-        stats.dropped_forged += 1
-        return None
+            return (announced,)
+        known = self._replay.epoch_of(src)
+        if known is None:
+            stats.dropped_unknown_epoch += 1
+            return None
+        return known, (known + 1) & MAX_EPOCH  # the source may have wrapped since
