@@ -3,11 +3,12 @@ ahead, and the regulated-pure-pursuit command on it (lookahead point, curvature,
 the scan's swept-footprint clearance), in one call per tick.
 
 Owns: these loops over a path's vertex arrays, and `py_hypot`, CPython's math.hypot. Must not know:
-Path, Polyline, poses, robots, time (nav/controller.py and nav/navigate.py call them with arrays).
+Path, Polyline, poses, robots, time (nav/path.py, nav/controller.py and nav/navigate.py call them
+with arrays).
 """
 
-# The same arithmetic as the Python it replaced (Polyline.project, .slice and .point_at in
-# nav/path.py, and compute_velocity's body; kept in tests/oracles/nav.py and checked there on
+# The same arithmetic as the Python it replaced (Polyline.project, .slice and .point_at, which now
+# call these kernels, and compute_velocity's body; kept in tests/oracles/nav.py and checked there on
 # random and recorded inputs): operation for operation, Python's min/max/bisect comparisons, and
 # Python's own hypot, which is not libm's. CPython (3.10 and later) computes hypot with scaling,
 # Veltkamp-Dekker splitting, compensated sums and a correction of the square root ("vector_norm"
