@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 import zenoh
 
+from interrupting import interrupted_wait
 from rescuemesh.geometry import Pose2D
 from rescuemesh.runtime.config import SimConfig
 from rescuemesh.runtime.onboard.link_bench import free_port, zenoh_confirm_rtt
@@ -133,6 +134,13 @@ def test_wait_times_out_and_wakes_at_once_on_arrival(links):
     finally:
         sender.join()
     assert two.drain() == [b"x" * 20]
+
+
+def test_a_signal_during_wait_with_the_interpreter_held_elsewhere_ends_it_on_time(links):
+    # a ROS 2 robot process froze here after Ctrl-C (the wait was a SimpleQueue's: transport/handoff.py)
+    one, two = links
+    outcome, took, unblocked = interrupted_wait(lambda: two.wait(0.05), lambda: one.send(b"x" * 20))
+    assert outcome is False and not unblocked and took < 5.0, (outcome, took)
 
 
 def test_a_clone_on_our_key_is_dropped_as_our_own_echo(sessions, links):

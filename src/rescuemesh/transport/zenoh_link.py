@@ -43,6 +43,7 @@ from dataclasses import asdict, dataclass
 import zenoh
 
 from rescuemesh.mesh.keys import FRAME_KEY_SALT, hkdf_sha256
+from rescuemesh.transport.handoff import Handoff
 
 #: First chunk of every rescuemesh key expression.
 KEY_PREFIX = "rescuemesh"
@@ -220,9 +221,10 @@ class ZenohLink:
         self._session, self._owns_session = session, owns_session
         self._max_queue = max_queue
         self._lock = threading.Lock()
-        # a token per frame that found the queues empty: wakes wait() (a SimpleQueue is C: a threading
-        # Event's Python-level Condition cost a round trip 0.3 ms more on a loaded machine)
-        self._wake: queue.SimpleQueue[None] = queue.SimpleQueue()
+        # a token per frame that found the queues empty: wakes wait() (a Handoff: a threading Event's
+        # Python-level Condition cost a round trip 0.3 ms more on a loaded machine, and a SimpleQueue's
+        # timed wait can block forever after a signal: transport/handoff.py)
+        self._wake: Handoff[None] = Handoff()
         self._queues: dict[str, deque[tuple[int, bytes]]] = {}  # key -> (arrival number, frame)
         self._waiting = 0
         self._arrivals = 0

@@ -24,6 +24,7 @@ from rescuemesh.robot import robot_address
 from rescuemesh.runtime.config import SimConfig
 from rescuemesh.runtime.onboard.linked_robot import ZENOH_ACK_TIMEOUT_S, build_robot, team_link_secret
 from rescuemesh.runtime.onboard.realtime import RealtimeLoop, monotonic_from_zero
+from rescuemesh.transport.handoff import Handoff
 from rescuemesh.transport.zenoh_link import KEY_PREFIX, ZenohLink, session_config
 
 #: Round trips thrown away first (connections warming up, first-use code paths).
@@ -114,7 +115,7 @@ def _raw_rtt(samples: int, team: str, deadline: float, python: str) -> dict:
             return _figures([], samples, failure=f"echo did not start: {helper.output()}")
         session = zenoh.open(session_config(connect=[f"tcp/127.0.0.1:{port}"]))
         try:
-            replies: queue.SimpleQueue[bytes] = queue.SimpleQueue()
+            replies: Handoff[bytes] = Handoff()
             ping = session.declare_publisher(f"{KEY_PREFIX}/{team}/bench/ping", express=True)
             session.declare_subscriber(f"{KEY_PREFIX}/{team}/bench/pong", lambda s: replies.put(s.payload.to_bytes()))
             if not _echo_ready(ping, replies, deadline):
@@ -135,7 +136,7 @@ def _raw_rtt(samples: int, team: str, deadline: float, python: str) -> dict:
     return _figures(rtts[WARMUP:] if len(rtts) > WARMUP else [], samples, lost=lost)
 
 
-def _echo_ready(ping, replies: queue.SimpleQueue, deadline: float) -> bool:
+def _echo_ready(ping, replies: Handoff, deadline: float) -> bool:
     """Ping until the echo's subscription has reached us (its first pong), within the deadline."""
     while time.monotonic() < deadline:
         ping.put(b"ready")
@@ -144,7 +145,7 @@ def _echo_ready(ping, replies: queue.SimpleQueue, deadline: float) -> bool:
     return False
 
 
-def _reply(replies: queue.SimpleQueue, payload: bytes, timeout_s: float) -> bool:
+def _reply(replies: Handoff, payload: bytes, timeout_s: float) -> bool:
     end = time.monotonic() + timeout_s
     while (left := end - time.monotonic()) > 0:
         try:

@@ -37,6 +37,7 @@ import zenoh
 from rescuemesh.mesh.keys import hkdf_sha256
 from rescuemesh.runtime.processes import control_messages as msg
 from rescuemesh.runtime.processes.control_codec import MAX_MESSAGE_BYTES, CodecError, decode, encode
+from rescuemesh.transport.handoff import Handoff
 from rescuemesh.transport.zenoh_link import check_endpoint, session_config
 
 __all__ = ["CALL_TIMEOUT_S", "CallClient", "CallServer", "ControlError", "ControlKey", "Keys", "Liveliness",
@@ -284,13 +285,13 @@ class CallClient:
         self.requests: Counter[str] = Counter()
         self.rounds: Counter[str] = Counter()
         self._counter = itertools.count(1)
-        self._inbox: dict[str, queue.SimpleQueue] = {}
+        self._inbox: dict[str, Handoff] = {}  # a Handoff: its timed wait ends on time after a signal
         self._publishers: dict[str, Any] = {}
         self._subscriber = session.declare_subscriber(keys.robots_reply, self._on_reply)
 
     def expect(self, robot: str) -> None:
         """Robot `robot` (re)joins: forget what its previous process left (late replies, its leaving)."""
-        self._inbox[robot] = queue.SimpleQueue()
+        self._inbox[robot] = Handoff()
 
     def gone(self, robot: str) -> None:
         """Robot `robot`'s process is gone (its token went): a call waiting for it ends now."""
