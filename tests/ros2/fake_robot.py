@@ -50,11 +50,14 @@ def main() -> int:
     node = rclpy.create_node(f"fake_{args.name}")
     odom_pub = node.create_publisher(Odometry, args.odom_topic or f"/{args.name}/odom", 10)
     scan_pub = node.create_publisher(LaserScan, f"/{args.name}/scan", qos_profile_sensor_data)
-    cmd = {"v": 0.0, "w": 0.0, "count": 0, "at": None, "stamped": 0}
+    cmd = {"v": 0.0, "w": 0.0, "count": 0, "at": None, "stamped": 0, "longest_gap_s": 0.0}
 
     def on_cmd(msg) -> None:
         twist = msg.twist if args.twist_stamped else msg
-        cmd.update(v=twist.linear.x, w=twist.angular.z, count=cmd["count"] + 1, at=time.monotonic(),
+        now = time.monotonic()
+        if cmd["at"] is not None:  # the longest silence between two cmd_vel, for a failing test's message
+            cmd["longest_gap_s"] = max(cmd["longest_gap_s"], now - cmd["at"])
+        cmd.update(v=twist.linear.x, w=twist.angular.z, count=cmd["count"] + 1, at=now,
                    stamped=cmd["stamped"] + args.twist_stamped)
 
     node.create_subscription(TwistStamped if args.twist_stamped else Twist, f"/{args.name}/cmd_vel", on_cmd, 10)
@@ -108,7 +111,8 @@ def main() -> int:
         if tick % (PHYSICS_HZ // STATE_HZ) == 0:
             state = {"x": x, "y": y, "yaw": yaw, "v": v, "w": w, "cmd_count": cmd["count"],
                      "cmd_age_s": None if cmd["at"] is None else now - cmd["at"], "path_length": path_length,
-                     "stop_cause": stop_cause, "timeouts": timeouts, "stamped": cmd["stamped"]}
+                     "stop_cause": stop_cause, "timeouts": timeouts, "stamped": cmd["stamped"],
+                     "longest_cmd_gap_s": cmd["longest_gap_s"]}
             tmp = f"{args.state}.tmp"
             with open(tmp, "w") as f:
                 json.dump(state, f)

@@ -26,6 +26,9 @@ def test_a_ros2_robot_process_drives_the_fake_robot_to_a_goal(ros2):
     state = ros2.state("robot_1")
     assert state["x"] > 1.5 and abs(state["y"]) < 0.3, state  # at the goal, on the fake robot's own odometry
     assert state["v"] == 0.0 and state["w"] == 0.0 and state["stop_cause"] == "zero_twist", state
+    # its loop commanded at its pace: no silence the base's 0.5 s cmd_vel timeout would have stopped
+    # (with rclpy's multi-threaded executor on the sensors the loop stalled 0.3-2.6 s while driving)
+    assert state["longest_cmd_gap_s"] < 0.5 and state["timeouts"] == 0, state
     assert "warning: no --pose-topic" in robot.stderr()  # its odom frame is taken as the map frame
 
 

@@ -51,25 +51,54 @@ def test_a_scan_taken_from_a_pose_that_is_not_finite_is_refused():
     assert laser_scan_from_msg(scan(), Pose2D(math.nan, 0.0, 0.0), 1.0) is None
 
 
-def test_a_ros2_body_refuses_odometry_a_pose_and_a_scan_that_are_not_finite():
-    # the ROS 2 body used to take Odometry and scans as they came (NaN included); its callbacks now
-    # use the same conversions as ROS 1's and warn (callbacks called on a stand-in, without rclpy)
-    import threading
+def _standing_in(version: str, warnings: list):
+    """A ROS 1 or ROS 2 body with its middleware replaced by plain objects (no rospy, no rclpy)."""
+    if version == "ros1":
+        from rescuemesh.runtime.ros.ros1_body import Ros1Body, Ros1Topics
 
-    from rescuemesh.runtime.ros.ros2_body import Ros2Body
+        body = object.__new__(Ros1Body)
+        body.topics = Ros1Topics(pose="/{robot}/pose").resolve("r")
+        body._rospy = NS(get_time=lambda: 3.0, logwarn=warnings.append)
+    else:
+        from rescuemesh.runtime.ros.ros2_body import Ros2Body
 
+        body = object.__new__(Ros2Body)
+        body.resolved = {"odom": "/r/odom", "pose": "/r/pose", "scan": "/r/scan"}
+        body.ros = NS(seconds=lambda: 3.0, node=NS(get_logger=lambda: NS(warning=warnings.append)))
+    body.name, body.laser_offset = "r", Pose2D(0.0, 0.0, 0.0)
+    body._init_state(0.0)
+    return body
+
+
+def _scan_msg(**fields):
+    return NS(header=NS(stamp=NS(sec=1, nanosec=0, to_sec=lambda: 1.0)), **vars(scan(**fields)))
+
+
+@pytest.mark.parametrize("version", ["ros1", "ros2"])
+def test_a_ros_body_refuses_odometry_a_pose_and_a_scan_that_are_not_finite(version):
+    # the ROS 2 body used to take Odometry and scans as they came (NaN included); both bodies' callbacks
+    # are now one (ros_body_common.RosBodyState), called here on bodies whose middleware is stood in for
     warnings = []
-    body = NS(_warn=warnings.append, resolved={"odom": "/r/odom", "pose": "/r/pose", "scan": "/r/scan"},
-              _lock=threading.Lock(), _odom=None, _odom_received_s=None, _localised=None, _scan=None,
-              _odometry_arrived=threading.Event(), ros=NS(seconds=lambda: 3.0), time_origin=0.0,
-              laser_offset=Pose2D(0.0, 0.0, 0.0))
-    Ros2Body._on_odom(body, odometry(x=math.nan))
-    assert body._odom is None and not body._odometry_arrived.is_set() and "not finite" in warnings[-1]
-    Ros2Body._on_odom(body, odometry())
-    assert body._odom[0].x == 1.0 and body._odometry_arrived.is_set()
-    Ros2Body._on_pose(body, NS(pose=odometry(qw=math.inf).pose))
-    assert body._localised is None and "/r/pose" in warnings[-1]
-    Ros2Body._on_scan(body, NS(header=NS(stamp=NS(sec=1, nanosec=0)), **vars(scan(angle_min=math.nan))))
-    assert body._scan is None and "/r/scan" in warnings[-1]
-    Ros2Body._on_scan(body, NS(header=NS(stamp=NS(sec=1, nanosec=0)), **vars(scan())))
-    assert body._scan is not None
+    body = _standing_in(version, warnings)
+    body._on_odom(odometry(x=math.nan))
+    assert body._odom is None and not body._odometry_arrived.is_set()
+    assert warnings == ["r: odometry on /r/odom is not finite: ignored"]
+    body._on_odom(odometry())
+    assert body._odom[0].x == 1.0 and body._odometry_arrived.is_set() and body.odometry_age() == 0.0
+    body._on_pose(NS(pose=odometry(qw=math.inf).pose))
+    assert body._localised is None and warnings[-1] == "r: pose on /r/pose is not finite: ignored"
+    body._on_scan(_scan_msg(angle_min=math.nan))
+    assert body._scan is None and warnings[-1] == "r: scan on /r/scan has a geometry that is not finite: ignored"
+    body._on_scan(_scan_msg())
+    assert body._scan is not None and body._scan.stamp == 1.0  # the header's stamp on the brain's clock
+
+
+@pytest.mark.parametrize("version", ["ros1", "ros2"])
+def test_a_driver_that_keeps_sending_bad_odometry_is_warned_about_once_per_period(version):
+    warnings = []
+    body = _standing_in(version, warnings)
+    for _ in range(50):  # a 50 Hz driver's second of NaN odometry
+        body._on_odom(odometry(x=math.nan))
+    body._on_scan(_scan_msg())  # no pose yet: nothing to place it at, no warning
+    body._on_pose(NS(pose=odometry(qw=math.inf).pose))
+    assert warnings == ["r: odometry on /r/odom is not finite: ignored", "r: pose on /r/pose is not finite: ignored"]

@@ -11,24 +11,29 @@ rospy comes from ROS 1 (Debian: python3-rospy), not from PyPI; it is imported on
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
-import numpy as np
+from rescuemesh.geometry import Pose2D
+from rescuemesh.runtime.ros.ros_body_common import (  # the conversions' and limits' old home: their names stay
+    ODOMETRY_WAIT_S,
+    TURTLEBOT2_MAX_ANGULAR_SPEED,
+    TURTLEBOT2_MAX_LINEAR_SPEED,
+    TURTLEBOT2_RADIUS,
+    NoOdometryError,
+    RosBodyState,
+    compose,
+    finite_pose_msg,
+    import_or_explain,
+    laser_scan_from_msg,
+    odometry_from_msg,
+    pose_msg_to_pose2d,
+    quaternion_msg_to_yaw,
+)
 
-from rescuemesh.body import LaserScan
-from rescuemesh.geometry import Pose2D, quaternion_to_yaw
-from rescuemesh.runtime.ros.ros_body_common import NoOdometryError, RosBodyState
-
-__all__ = ["NoOdometryError", "Ros1Body", "Ros1Topics", "Ros1Unavailable"]  # NoOdometryError: its old home
-
-#: TurtleBot 2 (Kobuki) limits and footprint, as the simulated robots (sim/mjcf.py).
-TURTLEBOT2_MAX_LINEAR_SPEED = 0.7  # m/s
-TURTLEBOT2_MAX_ANGULAR_SPEED = math.pi  # rad/s
-TURTLEBOT2_RADIUS = 0.177  # m
-
-#: How long the body waits at start for the first Odometry, in s.
-ODOMETRY_WAIT_S = 10.0
+__all__ = ["NoOdometryError", "Ros1Body", "Ros1Topics", "Ros1Unavailable", "ODOMETRY_WAIT_S",
+           "TURTLEBOT2_MAX_ANGULAR_SPEED", "TURTLEBOT2_MAX_LINEAR_SPEED", "TURTLEBOT2_RADIUS", "compose",
+           "finite_pose_msg", "laser_scan_from_msg", "odometry_from_msg", "pose_msg_to_pose2d",
+           "quaternion_msg_to_yaw"]
 
 ROS1_INSTALL_HINT = ("ROS 1's Python client is not on PyPI: install it with your ROS (Debian 12: "
                      "apt-get install ros-core python3-rospy python3-genpy python3-nav-msgs python3-sensor-msgs "
@@ -42,11 +47,7 @@ class Ros1Unavailable(ImportError):
 
 def import_rospy():
     """rospy, or Ros1Unavailable naming what to install."""
-    try:
-        import rospy
-    except ImportError as exc:
-        raise Ros1Unavailable(f"cannot import rospy ({exc}). {ROS1_INSTALL_HINT}") from exc
-    return rospy
+    return import_or_explain("rospy", Ros1Unavailable, ROS1_INSTALL_HINT)
 
 
 def init_node(name: str) -> None:
@@ -74,60 +75,6 @@ class Ros1Topics:
         """These names with `{robot}` replaced by `robot`."""
         fill = (lambda name: None if name is None else name.replace("{robot}", robot))
         return Ros1Topics(fill(self.odom), fill(self.scan), fill(self.cmd_vel), fill(self.pose))
-
-
-def quaternion_msg_to_yaw(q) -> float:
-    """Yaw in rad of a geometry_msgs/Quaternion (roll and pitch ignored)."""
-    return quaternion_to_yaw(q.x, q.y, q.z, q.w)
-
-
-def pose_msg_to_pose2d(pose) -> Pose2D:
-    """A geometry_msgs/Pose as a planar Pose2D (x, y in m, yaw in rad)."""
-    return Pose2D(float(pose.position.x), float(pose.position.y), quaternion_msg_to_yaw(pose.orientation))
-
-
-def odometry_from_msg(msg) -> tuple[Pose2D, float, float] | None:
-    """(pose, v, w) of a nav_msgs/Odometry, or None when any of them is not finite (a driver's NaN
-    must not reach the brain: it would be planned on, and sent)."""
-    if not finite_pose_msg(msg.pose.pose):
-        return None
-    v, w = float(msg.twist.twist.linear.x), float(msg.twist.twist.angular.z)
-    if not (math.isfinite(v) and math.isfinite(w)):
-        return None
-    return pose_msg_to_pose2d(msg.pose.pose), v, w
-
-
-def finite_pose_msg(pose) -> bool:
-    """Whether a geometry_msgs/Pose's position and orientation are all finite."""
-    p, q = pose.position, pose.orientation
-    return all(math.isfinite(float(v)) for v in (p.x, p.y, p.z, q.x, q.y, q.z, q.w))
-
-
-def laser_scan_from_msg(msg, origin: Pose2D, stamp: float) -> LaserScan | None:
-    """A sensor_msgs/LaserScan as rescuemesh.body.LaserScan taken from `origin` at `stamp` s, or None
-    for a scan whose geometry (angle_min, angle_increment, range_min, range_max) or origin is not
-    finite, or whose range_min > range_max.
-
-    REP-117: a beam with no return is +inf or beyond range_max, one too close is -inf or below
-    range_min; NaN is a bad reading. Everything without a valid return becomes inf (the brain
-    reads inf as "free to range_max"); readings below range_min stay, LaserScan.points_in_map drops them.
-    """
-    geometry = (float(msg.angle_min), float(msg.angle_increment), float(msg.range_min), float(msg.range_max),
-                origin.x, origin.y, origin.yaw, stamp)
-    if not all(math.isfinite(value) for value in geometry) or geometry[2] > geometry[3]:
-        return None
-    ranges = np.asarray(msg.ranges, dtype=float).copy()
-    range_max = float(msg.range_max)
-    ranges[np.isnan(ranges) | (ranges > range_max)] = np.inf
-    return LaserScan(stamp=stamp, origin=origin, angle_min=float(msg.angle_min),
-                     angle_increment=float(msg.angle_increment), range_min=float(msg.range_min),
-                     range_max=range_max, ranges=ranges)
-
-
-def compose(pose: Pose2D, offset: Pose2D) -> Pose2D:
-    """`offset` (in `pose`'s frame) expressed in the frame `pose` is in."""
-    c, s = math.cos(pose.yaw), math.sin(pose.yaw)
-    return Pose2D(pose.x + c * offset.x - s * offset.y, pose.y + s * offset.x + c * offset.y, pose.yaw + offset.yaw)
 
 
 class Ros1Body(RosBodyState):
@@ -166,42 +113,17 @@ class Ros1Body(RosBodyState):
                                                       queue_size=1))
         self.wait_for_odometry(odometry_wait_s)
 
-    # ----- rospy's threads -----
+    # ----- what the shared callbacks ask (rospy's threads) -----
 
-    def _stamp(self, header) -> float:
-        """A message's time in the brain's clock (s); receipt time when the driver left it 0."""
-        stamp = header.stamp.to_sec()
+    def _scan_stamp(self, msg) -> float:
+        stamp = msg.header.stamp.to_sec()
         return (stamp if stamp > 0.0 else self._rospy.get_time()) - self.time_origin
 
-    def _on_odom(self, msg) -> None:
-        odom = odometry_from_msg(msg)
-        if odom is None:  # refused: the last good odometry stays (and ages: odometry_age)
-            self._rospy.logwarn_throttle(5.0, f"{self.name}: odometry on {self.topics.odom} is not finite: ignored")
-            return
-        with self._lock:
-            self._odom, self._odom_received_s = odom, self._rospy.get_time()
-        self._odometry_arrived.set()
+    def _log_warning(self, text: str) -> None:
+        self._rospy.logwarn(text)
 
-    def _on_pose(self, msg) -> None:
-        if not finite_pose_msg(msg.pose.pose):
-            self._rospy.logwarn_throttle(5.0, f"{self.name}: pose on {self.topics.pose} is not finite: ignored")
-            return
-        pose = pose_msg_to_pose2d(msg.pose.pose)
-        with self._lock:
-            self._localised = pose
-
-    def _on_scan(self, msg) -> None:
-        with self._lock:
-            base = self._localised if self._localised is not None else (self._odom[0] if self._odom else None)
-        if base is None:
-            return  # no pose to place it at yet
-        scan = laser_scan_from_msg(msg, compose(base, self.laser_offset), self._stamp(msg.header))
-        if scan is None:
-            self._rospy.logwarn_throttle(5.0, f"{self.name}: scan on {self.topics.scan} has a geometry that is not "
-                                              "finite: ignored")
-            return
-        with self._lock:
-            self._scan = scan
+    def _topic(self, which: str) -> str:
+        return getattr(self.topics, which)
 
     # ----- the Body interface (the runtime's thread) -----
 
@@ -210,9 +132,6 @@ class Ros1Body(RosBodyState):
 
     def _ros_running(self) -> bool:
         return not self._rospy.is_shutdown()
-
-    def _odometry_topic(self) -> str:
-        return self.topics.odom
 
     def _no_odometry_hint(self) -> str:
         return "is the robot (or Gazebo) running, is ROS_MASTER_URI right, is the topic name right?"

@@ -16,16 +16,20 @@ import threading
 from dataclasses import dataclass, replace
 
 from rescuemesh.geometry import Pose2D
-from rescuemesh.runtime.ros.ros1_body import (ODOMETRY_WAIT_S, TURTLEBOT2_MAX_ANGULAR_SPEED, TURTLEBOT2_MAX_LINEAR_SPEED,
-                                          TURTLEBOT2_RADIUS, compose, finite_pose_msg,
-                                          laser_scan_from_msg, odometry_from_msg, pose_msg_to_pose2d)
-from rescuemesh.runtime.ros.ros_body_common import RosBodyState
+from rescuemesh.runtime.ros.ros_body_common import (
+    ODOMETRY_WAIT_S,
+    TURTLEBOT2_MAX_ANGULAR_SPEED,
+    TURTLEBOT2_MAX_LINEAR_SPEED,
+    TURTLEBOT2_RADIUS,
+    RosBodyState,
+    import_or_explain,
+)
 
 ROS2_INSTALL_HINT = ("rclpy comes with ROS 2: install ROS 2 (Humble, Jazzy or Kilted: apt-get install "
                      "ros-DISTRO-ros-base), `source /opt/ros/DISTRO/setup.bash`, and run rescuemesh from a virtualenv "
                      "made with --system-site-packages (docs/ros2.md)")
-#: Threads of the executor that runs the node's callbacks (subscriptions, the paper's action server).
-EXECUTOR_THREADS = 4
+#: Threads for the callbacks that block (the paper's action: one per command awaited at once).
+COMMAND_THREADS = 4
 
 
 class Ros2Unavailable(ImportError):
@@ -34,11 +38,7 @@ class Ros2Unavailable(ImportError):
 
 def import_rclpy():
     """rclpy, or Ros2Unavailable naming what to install."""
-    try:
-        import rclpy
-    except ImportError as exc:
-        raise Ros2Unavailable(f"cannot import rclpy ({exc}). {ROS2_INSTALL_HINT}") from exc
-    return rclpy
+    return import_or_explain("rclpy", Ros2Unavailable, ROS2_INSTALL_HINT)
 
 
 def stamp_seconds(stamp) -> float:
@@ -49,33 +49,58 @@ def stamp_seconds(stamp) -> float:
 class Ros2Node:
     """This process as a ROS 2 node `rescuemesh` in namespace `namespace` (default `/ROBOT`), with its own
     rclpy context (rclpy's signal handlers left out: the runtime decides how it stops) and a
-    multi-threaded executor spinning in a daemon thread. `ros_args`: what follows `--ros-args` on a ROS 2
-    command line (`-r odom:=/odom`, `-r __ns:=/tb4`, `-p use_sim_time:=true`, `--log-level debug` ...)."""
+    single-threaded executor spinning in a daemon thread. `ros_args`: what follows `--ros-args` on a ROS 2
+    command line (`-r odom:=/odom`, `-r __ns:=/tb4`, `-p use_sim_time:=true`, `--log-level debug` ...).
+
+    Callbacks that block (the paper's action, which waits for its command's end) go on a second node,
+    `rescuemesh_commands` in the same namespace (`commands_node()`), spun by a multi-threaded executor of
+    its own. rclpy's multi-threaded executor, spinning the robot's sensor subscriptions, took about 65 %
+    of a core on its own and held the interpreter so long that the robot's control loop stalled for up
+    to 2.6 s while driving (docs/ros2.md); the single-threaded one takes about 3 %."""
 
     def __init__(self, robot: str, *, namespace: str | None = None, ros_args: list[str] | None = None,
                  node_name: str = "rescuemesh") -> None:
         rclpy = import_rclpy()
-        from rclpy.executors import MultiThreadedExecutor
+        from rclpy.executors import SingleThreadedExecutor
         from rclpy.signals import SignalHandlerOptions
 
         self.rclpy = rclpy
+        self.robot, self.node_name = robot, node_name
         self.context = rclpy.Context()
         args = ["rescuemesh", "--ros-args", *ros_args] if ros_args else ["rescuemesh"]
         rclpy.init(args=args, context=self.context, signal_handler_options=SignalHandlerOptions.NO)
-        namespace = namespace if namespace is not None else f"/{robot}"
-        self.node = rclpy.create_node(node_name, namespace=namespace, context=self.context,
+        self.namespace = namespace if namespace is not None else f"/{robot}"
+        self.node = rclpy.create_node(node_name, namespace=self.namespace, context=self.context,
                                       automatically_declare_parameters_from_overrides=True)
         self.logger = self.node.get_logger()
-        self.executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS, context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
-        self._thread = threading.Thread(target=self._spin, name=f"rclpy-{robot}", daemon=True)
-        self._thread.start()
+        self._commands = None  # (node, executor, thread) once commands_node() is asked for
+        self._thread = self._spin_in_thread(self.executor, f"rclpy-{robot}")
 
-    def _spin(self) -> None:
-        try:
-            self.executor.spin()
-        except Exception:  # the context was shut down under it: the process is closing
-            pass
+    def _spin_in_thread(self, executor, name: str) -> threading.Thread:
+        def spin() -> None:
+            try:
+                executor.spin()
+            except Exception:  # the context was shut down under it: the process is closing
+                pass
+
+        thread = threading.Thread(target=spin, name=name, daemon=True)
+        thread.start()
+        return thread
+
+    def commands_node(self):
+        """The node for callbacks that block (made on first use): `NODE_commands`, same namespace,
+        its callbacks on COMMAND_THREADS threads of their own."""
+        if self._commands is None:
+            from rclpy.executors import MultiThreadedExecutor
+
+            node = self.rclpy.create_node(f"{self.node_name}_commands", namespace=self.namespace,
+                                          context=self.context)
+            executor = MultiThreadedExecutor(num_threads=COMMAND_THREADS, context=self.context)
+            executor.add_node(node)
+            self._commands = (node, executor, self._spin_in_thread(executor, f"rclpy-{self.robot}-commands"))
+        return self._commands[0]
 
     def parameter(self, name: str, default):
         """The node's parameter `name` (from `--ros-args -p name:=value`), declared with `default`."""
@@ -93,13 +118,16 @@ class Ros2Node:
         return self.node.resolve_topic_name(topic)
 
     def close(self) -> None:
-        """Stop the executor, destroy the node, shut the context down. Safe to call twice."""
+        """Stop the executors, destroy the nodes, shut the context down. Safe to call twice."""
         if not self.context.ok():
             return
-        self.executor.shutdown(timeout_sec=1.0)
-        self.node.destroy_node()
+        spun = [(self.node, self.executor, self._thread)] + ([self._commands] if self._commands else [])
+        for node, executor, _ in spun:
+            executor.shutdown(timeout_sec=1.0)
+            node.destroy_node()
         self.rclpy.shutdown(context=self.context)
-        self._thread.join(timeout=2.0)
+        for _, _, thread in spun:
+            thread.join(timeout=2.0)
 
 
 @dataclass(frozen=True)
@@ -168,41 +196,17 @@ class Ros2Body(RosBodyState):
         self.wait_for_odometry(odometry_wait_s)
         self.time_origin = ros.seconds()  # under use_sim_time the clock starts with the first /clock
 
-    # ----- the executor's threads -----
+    # ----- what the shared callbacks ask (the executor's threads) -----
 
-    def _warn(self, text: str) -> None:
-        self.ros.node.get_logger().warning(f"{self.name}: {text}", throttle_duration_sec=5.0)
-
-    def _on_odom(self, msg) -> None:
-        odom = odometry_from_msg(msg)
-        if odom is None:  # refused: the last good odometry stays (and ages: odometry_age)
-            self._warn(f"odometry on {self.resolved['odom']} is not finite: ignored")
-            return
-        with self._lock:
-            self._odom, self._odom_received_s = odom, self.ros.seconds()
-        self._odometry_arrived.set()
-
-    def _on_pose(self, msg) -> None:
-        if not finite_pose_msg(msg.pose.pose):
-            self._warn(f"pose on {self.resolved['pose']} is not finite: ignored")
-            return
-        pose = pose_msg_to_pose2d(msg.pose.pose)
-        with self._lock:
-            self._localised = pose
-
-    def _on_scan(self, msg) -> None:
-        with self._lock:
-            base = self._localised if self._localised is not None else (self._odom[0] if self._odom else None)
-        if base is None:
-            return  # no pose to place it at yet
+    def _scan_stamp(self, msg) -> float:
         stamp = stamp_seconds(msg.header.stamp)
-        stamp = (stamp if stamp > 0.0 else self.ros.seconds()) - self.time_origin
-        scan = laser_scan_from_msg(msg, compose(base, self.laser_offset), stamp)
-        if scan is None:
-            self._warn(f"scan on {self.resolved['scan']} has a geometry that is not finite: ignored")
-            return
-        with self._lock:
-            self._scan = scan
+        return (stamp if stamp > 0.0 else self.ros.seconds()) - self.time_origin
+
+    def _log_warning(self, text: str) -> None:
+        self.ros.node.get_logger().warning(text)
+
+    def _topic(self, which: str) -> str:
+        return self.resolved[which]
 
     # ----- the Body interface (the runtime's thread) -----
 
@@ -213,9 +217,6 @@ class Ros2Body(RosBodyState):
 
     def _ros_running(self) -> bool:
         return self.ros.context.ok()
-
-    def _odometry_topic(self) -> str:
-        return self.resolved["odom"]
 
     def _no_odometry_hint(self) -> str:
         return ("is the robot (or Gazebo) running, on this ROS_DOMAIN_ID and RMW_IMPLEMENTATION, is the topic right "

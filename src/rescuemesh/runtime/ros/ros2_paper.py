@@ -85,7 +85,7 @@ class Ros2Paper:
             depth=COMMAND_HISTORY, durability=DurabilityPolicy.TRANSIENT_LOCAL, reliability=ReliabilityPolicy.RELIABLE))
         self._follow = node.create_publisher(PoseStamped, "comm_protocol/follow", 10)
         self._input = node.create_subscription(self.Command, "comm_protocol/command/input", self._on_input, 100)
-        self._action = ActionServer(node, self.SendCommand, "comm_protocol/send_command", self._execute,
+        self._action = ActionServer(ros.commands_node(), self.SendCommand, "comm_protocol/send_command", self._execute,
                                     goal_callback=lambda goal: GoalResponse.ACCEPT,
                                     cancel_callback=lambda goal: CancelResponse.REJECT,
                                     callback_group=ReentrantCallbackGroup())
