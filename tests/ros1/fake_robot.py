@@ -40,10 +40,13 @@ def main() -> int:
     rospy.init_node(f"fake_{args.name}", disable_signals=True)
     odom_pub = rospy.Publisher(f"/{args.name}/odom", Odometry, queue_size=10)
     scan_pub = rospy.Publisher(f"/{args.name}/scan", LaserScan, queue_size=10)
-    cmd = {"v": 0.0, "w": 0.0, "count": 0, "at": None}
+    cmd = {"v": 0.0, "w": 0.0, "count": 0, "at": None, "longest_gap_s": 0.0}
 
     def on_cmd(msg: Twist) -> None:
-        cmd.update(v=msg.linear.x, w=msg.angular.z, count=cmd["count"] + 1, at=time.monotonic())
+        now = time.monotonic()
+        if cmd["at"] is not None:  # the longest silence between two cmd_vel, for a failing test's message
+            cmd["longest_gap_s"] = max(cmd["longest_gap_s"], now - cmd["at"])
+        cmd.update(v=msg.linear.x, w=msg.angular.z, count=cmd["count"] + 1, at=now)
 
     rospy.Subscriber(f"/{args.name}/cmd_vel", Twist, on_cmd, queue_size=10)
     started = last = time.monotonic()
@@ -77,7 +80,8 @@ def main() -> int:
             scan_pub.publish(scan)
         if tick % (PHYSICS_HZ // STATE_HZ) == 0:
             state = {"x": x, "y": y, "yaw": yaw, "v": v, "w": w, "cmd_count": cmd["count"],
-                     "cmd_age_s": None if cmd["at"] is None else now - cmd["at"], "path_length": path_length}
+                     "cmd_age_s": None if cmd["at"] is None else now - cmd["at"], "path_length": path_length,
+                     "longest_cmd_gap_s": cmd["longest_gap_s"]}
             tmp = f"{args.state}.tmp"
             with open(tmp, "w") as f:
                 json.dump(state, f)

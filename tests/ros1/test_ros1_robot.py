@@ -34,6 +34,8 @@ def test_two_ros_robots_as_processes_over_zenoh_complete_a_follow(ros):
     gap = math.hypot(one["x"] - two["x"], one["y"] - two["y"])
     assert two["x"] > 0.5 and gap < 2.0, (two, gap)  # the follower came along over Zenoh
     assert two["v"] == 0.0 and two["w"] == 0.0  # and both halted on the way out
+    # both loops commanded at their pace: no silence the base's 0.5 s cmd_vel timeout would stop (0.05 s seen)
+    assert one["longest_cmd_gap_s"] < 0.5 and two["longest_cmd_gap_s"] < 0.5, (one, two)
     assert echo.wait(20) == 0, echo.stderr()
     text = echo.stdout()
     assert 'type: "COMMAND_FOLLOW"\ndirection: "RECEIVED"\nsender: "robot_1"\nreceiver: "robot_2"' in text
