@@ -96,7 +96,8 @@ class Ros2Node:
             from rclpy.executors import MultiThreadedExecutor
 
             node = self.rclpy.create_node(f"{self.node_name}_commands", namespace=self.namespace,
-                                          context=self.context)
+                                          context=self.context,  # `-p use_sim_time:=true` reaches its clock too
+                                          automatically_declare_parameters_from_overrides=True)
             executor = MultiThreadedExecutor(num_threads=COMMAND_THREADS, context=self.context)
             executor.add_node(node)
             self._commands = (node, executor, self._spin_in_thread(executor, f"rclpy-{self.robot}-commands"))
