@@ -15,7 +15,6 @@ from rescuemesh.nav.controller import ControllerParams, obstacle_reach, obstacle
 from rescuemesh.nav.costmap import LETHAL
 from rescuemesh.nav.kernels import scan_clearance
 from rescuemesh.nav.path import Polyline as PackagePolyline
-from rescuemesh.nav.path import cumulative_lengths
 
 
 def cells_of(xy, origin_xy, resolution, shape):
@@ -237,43 +236,17 @@ def cumulative_lengths(points):
 # -- the controller (nav/controller.py before nav/pursuit_kernels.py) ---------------------------------
 
 
-class Polyline:
-    """nav/path.py's Polyline before its geometry was compiled (nav/pursuit_kernels.py): a polyline in
-    plain Python floats with its per-vertex arc lengths.
+class Polyline(PackagePolyline):
+    """nav/path.py's Polyline with its geometry (`point_at`, `project`, `slice`) in the Python it had
+    before nav/pursuit_kernels.py compiled it; the rest is the package's, but for the arc lengths of
+    `from_points`, which this module's Python sums (the package's are compiled)."""
 
-    `xs`, `ys`: vertex coordinates in m (N >= 1); `cum`: arc length in m at each vertex; `length`:
-    the total. `project`, `point_at` and `slice` only visit the segments in the requested arc-length
-    window (found by bisection).
-    """
-
-    __slots__ = ("xs", "ys", "cum", "length")
-
-    def __init__(self, xs: list[float], ys: list[float], cum: list[float]) -> None:
-        self.xs, self.ys, self.cum = xs, ys, cum
-        self.length = cum[-1] if cum else 0.0
+    __slots__ = ()
 
     @classmethod
     def from_points(cls, points: np.ndarray, *, cum: np.ndarray | None = None) -> "Polyline":
-        """From an (N, 2) array in m; `cum` its `cumulative_lengths` when already known."""
         pts = np.asarray(points, dtype=float).reshape(-1, 2)
-        cum = cumulative_lengths(pts) if cum is None else cum
-        return cls(pts[:, 0].tolist(), pts[:, 1].tolist(), cum.tolist())
-
-    @classmethod
-    def from_vertices(cls, xs: list[float], ys: list[float]) -> "Polyline":
-        """From vertex coordinate lists in m (N >= 1); arc lengths summed as `cumulative_lengths` does."""
-        cum, s = [0.0], 0.0
-        for i in range(1, len(xs)):
-            s += math.hypot(xs[i] - xs[i - 1], ys[i] - ys[i - 1])
-            cum.append(s)
-        return cls(xs, ys, cum)
-
-    def __len__(self) -> int:
-        return len(self.xs)
-
-    def to_array(self) -> np.ndarray:
-        """The vertices as an (N, 2) array in m."""
-        return np.column_stack([self.xs, self.ys]).reshape(-1, 2)
+        return super().from_points(pts, cum=cumulative_lengths(pts) if cum is None else cum)
 
     def point_at(self, s: float) -> tuple[float, float]:
         """(x, y) in m at arc length `s` m, clamped to the ends (`np.interp`'s arithmetic)."""
@@ -349,18 +322,9 @@ def compute_velocity(
     xy_tolerance: float = 0.0,
     current_speed: float | None = None,
 ) -> tuple[float, float]:
-    """One regulated-pure-pursuit command (v m/s, omega rad/s) to follow `path` ((N, 2) map m, or a Polyline).
-
-    - Within `xy_tolerance` m of the path end: rotate in place to `goal_yaw` (rad), or (0, 0) without one.
-    - Heading error to the lookahead point above `rotate_to_heading_angle`: rotate in place.
-    - Otherwise drive the pure-pursuit arc through the lookahead point (at speed * lookahead_time m,
-      clamped; `current_speed` m/s defaults to max_linear), slowed on tight arcs, near the path end,
-      and for scan obstacles (`scan_points`, (M, 2) map m) in the swept footprint ahead before the
-      path end: stopped within `obstacle_stop_distance`. The arc's curvature is kept when omega saturates.
-
-    (nav/controller.py's compute_velocity before it was compiled: plain floats on a Polyline.)
-    """
-    if isinstance(path, PackagePolyline):
+    """nav/controller.py's compute_velocity (its docstring says what it does) before it was compiled:
+    plain floats on this module's Polyline."""
+    if isinstance(path, PackagePolyline) and not isinstance(path, Polyline):
         path = Polyline(path.xs, path.ys, path.cum)
     line = path if isinstance(path, Polyline) else Polyline.from_points(path)
     if len(line) == 0:
