@@ -1,12 +1,14 @@
 """Oracle of BleChannel's link budget: the Python `_budget_terms` computed before the scalar called the
 compiled row (radio/ble.py `_budget_row`), kept verbatim but for reading the channel's fields from
-outside. The wall walks it calls are walls.py's public functions, checked against their own oracles
-(oracles/walls.py)."""
+outside and taking the shadow field's units from the field's own oracle (oracles/shadowing.py), as
+the channel took them from the field's Python then. The wall walks it calls are walls.py's public
+functions, checked against their own oracles (oracles/walls.py)."""
 
 from __future__ import annotations
 
 import math
 
+from oracles.shadowing import unit
 from rescuemesh.radio.walls import wall_loss_cells, wall_loss_fresnel
 
 _SQRT2 = math.sqrt(2.0)
@@ -28,7 +30,7 @@ def budget_terms(ch, ai: int, aj: int, bi: int, bj: int) -> tuple[float, float, 
         walls, wall_loss = wall_loss_cells(ch.grid, aj, ai, bj, bi, ch._loss_by_code)
     else:
         walls, wall_loss = wall_loss_fresnel(ch.grid, pa, pb, ch._loss_by_code, ch._wavelength, ch._dh, ch._rays)
-    shadow = ch.shadow.sigma_db * (ch._unit_at(ai, aj, pa) + ch._unit_at(bi, bj, pb)) / _SQRT2 \
+    shadow = ch.shadow.sigma_db * (unit(ch.shadow, *pa) + unit(ch.shadow, *pb)) / _SQRT2 \
         if ch.shadow.sigma_db != 0.0 else 0.0
     power = p.tx_power_dbm + p.tx_antenna_gain_dbi + p.rx_antenna_gain_dbi - path_loss - wall_loss - shadow
     return d, path_loss, walls, shadow, power, wall_loss

@@ -170,3 +170,19 @@ def test_budget_terms_are_the_python_budget_they_replaced(grid, params):
         assert type(got[2]) is int
         budget = channel.link_budget(p, q)
         assert (budget.distance_m, budget.walls, budget.mean_rx_power_dbm) == (want[0], want[2], want[4])
+
+
+def test_the_compiled_shadow_field_is_the_python_one():
+    # ShadowField.unit (and the link budget's row, which calls the same kernel) against the Python
+    # field it replaced, over the plane and far from the origin, for seeds that set every key bit
+    from oracles.shadowing import unit
+    from rescuemesh.radio.shadowing import ShadowField
+
+    rng = np.random.default_rng(17)
+    pts = np.concatenate([rng.uniform(-60.0, 60.0, (3000, 2)), rng.uniform(-1e6, 1e6, (300, 2)),
+                          np.round(rng.uniform(-20.0, 20.0, (300, 2)), 1)])  # on the lattice's lines too
+    for seed, spacing in ((0, 4.0), (2**63 - 1, 4.0), (-1, 0.7), (12345, 9.5)):
+        field = ShadowField(seed, 4.0, spacing)
+        got = np.array([field.unit(x, y) for x, y in pts.tolist()])
+        want = np.array([unit(field, x, y) for x, y in pts.tolist()])
+        np.testing.assert_array_equal(got, want)

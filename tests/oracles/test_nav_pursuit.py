@@ -17,37 +17,6 @@ from rescuemesh.nav.pursuit_kernels import project
 P = ControllerParams()
 
 
-def _hypot_pairs(rng, n):
-    a = np.concatenate([rng.uniform(-10, 10, n), rng.normal(0, 1e-3, n), np.round(rng.uniform(-50, 50, n), 2),
-                        np.exp(rng.uniform(-700, 700, n)) * rng.choice([-1, 1], n),
-                        rng.uniform(-1, 1, n) * 10.0 ** rng.integers(-320, -300, n)])
-    b = np.concatenate([rng.uniform(-10, 10, n), rng.normal(0, 5, n), np.round(rng.uniform(-50, 50, n), 2),
-                        np.exp(rng.uniform(-700, 700, n)), rng.uniform(-1, 1, n) * 10.0 ** rng.integers(-320, -300, n)])
-    special = [0.0, -0.0, math.inf, -math.inf, math.nan, 5e-324, 1.7976931348623157e308, 3.0, 4.0]
-    sa, sb = np.meshgrid(special, special)
-    return np.concatenate([a, sa.ravel()]), np.concatenate([b, sb.ravel()])
-
-
-def test_py_hypot_is_pythons_hypot_not_libms():
-    # a two-vertex polyline's arc length is hypot(dx, dy), in the compiled controller's own arithmetic
-    from rescuemesh.jit import compiled
-    from rescuemesh.nav.pursuit_kernels import py_hypot
-
-    @compiled()
-    def many(a, b):
-        out = np.empty(a.shape[0])
-        for i in range(a.shape[0]):
-            out[i] = py_hypot(a[i], b[i])
-        return out
-
-    a, b = _hypot_pairs(np.random.default_rng(40), 40_000)
-    got = many(a, b)
-    want = np.array([math.hypot(x, y) for x, y in zip(a.tolist(), b.tolist())])
-    np.testing.assert_array_equal(got, want)
-    with np.errstate(over="ignore"):
-        assert (np.hypot(a, b) != want).sum() > 50  # libm's hypot, which numba's math.hypot calls, differs
-
-
 def _random_path(rng):
     n = int(rng.choice([1, 2, 3, 8, 30]))
     pts = np.cumsum(rng.normal(0.0, rng.choice([0.05, 0.4, 1.5]), (n, 2)), axis=0)

@@ -2,7 +2,7 @@
 ahead, and the regulated-pure-pursuit command on it (lookahead point, curvature, the regulations,
 the scan's swept-footprint clearance), in one call per tick.
 
-Owns: these loops over a path's vertex arrays, and `py_hypot`, CPython's math.hypot. Must not know:
+Owns: these loops over a path's vertex arrays (with CPython's math.hypot, rescuemesh/pymath.py). Must not know:
 Path, Polyline, poses, robots, time (nav/path.py, nav/controller.py and nav/navigate.py call them
 with arrays).
 """
@@ -10,10 +10,7 @@ with arrays).
 # The same arithmetic as the Python it replaced (Polyline.project, .slice and .point_at, which now
 # call these kernels, and compute_velocity's body; kept in tests/oracles/nav.py and checked there on
 # random and recorded inputs): operation for operation, Python's min/max/bisect comparisons, and
-# Python's own hypot, which is not libm's. CPython (3.10 and later) computes hypot with scaling,
-# Veltkamp-Dekker splitting, compensated sums and a correction of the square root ("vector_norm"
-# in Modules/mathmodule.c); libm's hypot, which numba's math.hypot calls, differs from it in the
-# last bit for about one pair in a thousand, and the runs would change with it.
+# Python's own hypot, which is not libm's (rescuemesh/pymath.py says why that matters).
 
 from __future__ import annotations
 
@@ -23,69 +20,14 @@ import numpy as np
 
 from rescuemesh.jit import compiled, compiled_on_first_call
 from rescuemesh.nav.kernels import scan_clearance
+from rescuemesh.pymath import py_hypot
 
-_T27 = 134217729.0  # 2 ** 27 + 1: Veltkamp-Dekker's splitting constant for doubles
 
 # the controller's parameters, in the order `params` arrays hold them (nav/controller.py, _param_vector)
 MAX_LINEAR, MAX_ANGULAR, MIN_LOOKAHEAD, MAX_LOOKAHEAD, LOOKAHEAD_TIME, ROTATE_ANGLE, ROTATE_GAIN = range(7)
 MIN_ROTATE, DEADBAND, MIN_RADIUS, APPROACH, MIN_APPROACH, FOOTPRINT, MARGIN, STOP, SLOW = range(7, 16)
 END_MARGIN, SEARCH, REACH = range(16, 19)
 N_PARAMS = 19
-
-
-@compiled()  # no signature: compiled into its callers
-def py_hypot(a, b):
-    """math.hypot(a, b) as CPython 3.10+ computes it (vector_norm for two coordinates), bit for bit."""
-    x0, x1 = abs(a), abs(b)
-    if math.isnan(x0) or math.isnan(x1):
-        return math.inf if math.isinf(x0) or math.isinf(x1) else math.nan
-    mx = x1 if x1 > x0 else x0
-    if math.isinf(mx) or mx == 0.0:
-        return mx
-    _, max_e = math.frexp(mx)
-    if max_e < -1023:  # subnormal: divide by the largest instead of scaling
-        csum, frac1 = 1.0, 0.0
-        for x in (x0, x1):
-            x = x / mx
-            x = x * x
-            old = csum
-            csum += x
-            frac1 += (old - csum) + x
-        return mx * math.sqrt(csum - 1.0 + frac1)
-    scale = math.ldexp(1.0, -max_e)
-    csum, frac1, frac2, frac3 = 1.0, 0.0, 0.0, 0.0
-    for x in (x0, x1):
-        x = x * scale
-        t = x * _T27
-        hi = t - (t - x)
-        lo = x - hi
-        x = hi * hi
-        old = csum
-        csum += x
-        frac1 += (old - csum) + x
-        x = 2.0 * hi * lo
-        old = csum
-        csum += x
-        frac2 += (old - csum) + x
-        frac3 += lo * lo
-    h = math.sqrt(csum - 1.0 + (frac1 + frac2 + frac3))
-    t = h * _T27
-    hi = t - (t - h)
-    lo = h - hi
-    x = -hi * hi
-    old = csum
-    csum += x
-    frac1 += (old - csum) + x
-    x = -2.0 * hi * lo
-    old = csum
-    csum += x
-    frac2 += (old - csum) + x
-    x = -lo * lo
-    old = csum
-    csum += x
-    frac3 += (old - csum) + x
-    x = csum - 1.0 + (frac1 + frac2 + frac3)
-    return (h + x / (2.0 * h)) / scale
 
 
 @compiled()

@@ -48,10 +48,11 @@ from rescuemesh.maps.model import WallMaterial
 from rescuemesh.radio.channel import ChannelModel, LossCause, Point, Reception, ble_adv_airtime_s, register_channel
 from rescuemesh.radio.fading import gain_db_distribution, rician_gain_from_uniforms
 from rescuemesh.radio.per import crc_covered_bits, packet_error_rate, packet_error_rate_scalar
-from rescuemesh.radio.shadowing import ShadowField
+from rescuemesh.radio.shadowing import ShadowField, field_unit
 from rescuemesh.radio.streams import UniformStream, uniforms
 from rescuemesh.radio.materials import C_M_S
 from rescuemesh.jit import compiled
+from rescuemesh.pymath import py_hypot3
 from rescuemesh.radio.walls import (_fresnel_wall_loss, _occupied_sat, _padded, _padded_codes, _wall_loss_on_line,
                                     wall_loss_cells, wall_loss_fresnel, wall_loss_fresnel_many, wall_loss_many)
 
@@ -249,10 +250,7 @@ class BleChannel(ChannelModel):
         self._rays = int(p.wall_fresnel_rays)
         self._wavelength = p.wavelength_m
         self._mean_power_cells = lru_cache(maxsize=cache_pairs)(self._compute_mean_power_cells)
-        self._cache_pairs = cache_pairs
-        self._unit_of_cell: dict[tuple[int, int], float] = {}
         self._row_args: tuple | None = None
-        self._origin = np.array([self._ox, self._oy])
         self._tables: dict[int, np.ndarray] = {}
         self._bits: dict[int, int] = {}
 
@@ -293,26 +291,12 @@ class BleChannel(ChannelModel):
         (ai, aj) <= (bi, bj): the compiled row (`_budget_row`) for one receiver, so the scalar and the
         row are one implementation (the Python it replaced is the oracle in tests/oracles/ble_budget.py).
         `d` is the 3D distance of the antennas."""
-        q = self._quantum
-        tcx, tcy = self._centre(ai, aj)
-        cells = np.array([[bi, bj]], dtype=np.int64)
-        centres = self._origin + (cells + 0.5) * q  # as the row computes them
-        terms = self._terms_row(ai, aj, tcx, tcy, cells, centres)[0]
-        return (float(self._distances(tcx, tcy, centres)[0]), float(terms[_PATH_LOSS]), int(terms[_WALLS]),
-                float(terms[_SHADOW]), float(terms[_POWER]), float(terms[_WALL_LOSS]))
+        terms = self._terms_row(ai, aj, np.array([[bi, bj]], dtype=np.int64))[0]
+        return (float(terms[_DISTANCE]), float(terms[_PATH_LOSS]), int(terms[_WALLS]), float(terms[_SHADOW]),
+                float(terms[_POWER]), float(terms[_WALL_LOSS]))
 
     def _compute_mean_power_cells(self, ai: int, aj: int, bi: int, bj: int) -> float:
         return self._budget_terms(ai, aj, bi, bj)[4]
-
-    def _unit_at(self, i: int, j: int, centre: Point) -> float:
-        """The shadow field F at the centre of cell (i, j), cached (bounded like the pair cache)."""
-        units = self._unit_of_cell
-        unit = units.get((i, j))
-        if unit is None:
-            if len(units) >= self._cache_pairs:
-                units.clear()
-            unit = units[(i, j)] = self.shadow.unit(centre[0], centre[1])
-        return unit
 
     def mean_rx_power_dbm(self, tx_xy: Point, rx_xy: Point) -> float:
         q = self._quantum
@@ -326,51 +310,26 @@ class BleChannel(ChannelModel):
 
     def mean_rx_power_row(self, tx_xy: Point, rx_xy: np.ndarray) -> np.ndarray:
         """`mean_rx_power_dbm(tx_xy, p)` for each p of `rx_xy` (shape (N, 2)), the same numbers, in one
-        compiled call (`_budget_row`, which the scalar calls for one receiver) instead of one Python
-        call per receiver. The pair cache is neither read nor filled (a moving team hardly meets a
-        pair twice: see docs/radio.md)."""
+        compiled call (`_power_row`: the cells, then `_budget_row`'s budget for each) instead of one
+        Python call per receiver. The pair cache is neither read nor filled (a moving team hardly meets
+        a pair twice: see docs/radio.md)."""
         if type(self).mean_rx_power_dbm is not BleChannel.mean_rx_power_dbm \
                 or type(self)._budget_terms is not BleChannel._budget_terms:
             return super().mean_rx_power_row(tx_xy, rx_xy)  # a subclass's own model: ask it per pair
-        pts = np.asarray(rx_xy, dtype=float).reshape(-1, 2)
-        q, ox, oy = self._quantum, self._ox, self._oy
-        ai = math.floor((tx_xy[0] - ox) / q)
-        aj = math.floor((tx_xy[1] - oy) / q)
-        tcx, tcy = self._centre(ai, aj)
-        origin = self._origin
-        cells = np.floor((pts - origin) / q)
-        centres = origin + (cells + 0.5) * q
-        return self._terms_row(ai, aj, tcx, tcy, cells.astype(np.int64), centres)[:, _POWER].copy()
-
-    def _distances(self, tcx: float, tcy: float, centres: np.ndarray) -> np.ndarray:
-        """The 3D distances from the antenna over (tcx, tcy) to those over `centres`: math.hypot, as
-        the scalar had it (numba has no three-argument hypot; a square root of the sum of squares
-        differs from it in the last bit). |pb - pa| either way round: hypot takes magnitudes."""
-        n = len(centres)
-        return np.fromiter(map(math.hypot, (centres[:, 0] - tcx).tolist(), (centres[:, 1] - tcy).tolist(),
-                               (self._dh,) * n), float, n)
-
-    def _terms_row(self, ai: int, aj: int, tcx: float, tcy: float, cells: np.ndarray,
-                   centres: np.ndarray) -> np.ndarray:
-        """The link budget's terms (columns _PATH_LOSS, _WALLS, _WALL_LOSS, _SHADOW, _POWER) from the
-        cell (ai, aj), centre (tcx, tcy), to each cell of `cells` (int64 (N, 2), centres `centres`)."""
-        n = len(cells)
-        d = self._distances(tcx, tcy, centres)
-        if self.shadow.sigma_db != 0.0:
-            unit_tx = self._unit_at(ai, aj, (tcx, tcy))
-            keys = list(map(tuple, cells.tolist()))
-            get = self._unit_of_cell.get
-            units = [get(c) for c in keys]
-            if None in units:  # cells not met before
-                unit_at, centre = self._unit_at, self._centre
-                units = [unit_at(c[0], c[1], centre(*c)) if u is None else u for u, c in zip(units, keys)]
-            unit_rx = np.array(units, dtype=float)
-        else:
-            unit_tx, unit_rx = 0.0, np.zeros(n)
+        pts = np.ascontiguousarray(rx_xy, dtype=float).reshape(-1, 2)
         if self._row_args is None:
             self._row_args = self._row_arguments()
-        terms = np.empty((n, _TERMS))
-        _budget_row(*self._row_args, ai, aj, tcx, tcy, unit_tx, cells, centres, d, unit_rx, terms)
+        power = np.empty(len(pts))
+        _power_row(*self._row_args, float(tx_xy[0]), float(tx_xy[1]), pts, power)
+        return power
+
+    def _terms_row(self, ai: int, aj: int, cells: np.ndarray) -> np.ndarray:
+        """The link budget's terms (columns _DISTANCE, _PATH_LOSS, _WALLS, _WALL_LOSS, _SHADOW, _POWER)
+        from the cell (ai, aj) to each cell of `cells` (int64 (N, 2))."""
+        if self._row_args is None:
+            self._row_args = self._row_arguments()
+        terms = np.empty((len(cells), _TERMS))
+        _budget_row(*self._row_args, ai, aj, cells, terms)
         return terms
 
     def _row_arguments(self) -> tuple:
@@ -383,8 +342,10 @@ class BleChannel(ChannelModel):
             padded, sat, codes = _padded(grid), _occupied_sat(grid), _padded_codes(grid)
         numbers = np.array([self._ox, self._oy, self._quantum, self._wavelength, self._dh, p.min_distance_m,
                             self._bp, p.reference_loss_db, self._near10, self._far10, self.shadow.sigma_db,
-                            p.tx_power_dbm, p.tx_antenna_gain_dbi, p.rx_antenna_gain_dbi])
-        return mode, self._rays, padded, sat, codes, np.ascontiguousarray(self._loss_by_code, dtype=float), numbers
+                            p.tx_power_dbm, p.tx_antenna_gain_dbi, p.rx_antenna_gain_dbi,
+                            self.shadow.decorrelation_m])
+        return (mode, self._rays, padded, sat, codes, np.ascontiguousarray(self._loss_by_code, dtype=float), numbers,
+                self.shadow.key)
 
     def mean_rx_power_map(self, tx_xy: Point, rx_xy: np.ndarray) -> np.ndarray:
         """Mean power from tx to each point (shape (N, 2)); vectorised, same model as above.
@@ -497,48 +458,82 @@ _EMPTY_PADDED = np.ones((3, 3), dtype=bool)
 _EMPTY_SAT = np.zeros((4, 4), dtype=np.int64)
 _EMPTY_CODES = np.zeros((3, 3), dtype=np.uint8)
 # The columns of `_budget_row`'s terms.
-_PATH_LOSS, _WALLS, _WALL_LOSS, _SHADOW, _POWER = range(5)
-_TERMS = 5
+_DISTANCE, _PATH_LOSS, _WALLS, _WALL_LOSS, _SHADOW, _POWER = range(6)
+_TERMS = 6
+_ROW_ARGUMENTS = "i8, i8, b1[:, ::1], i8[:, ::1], u1[:, ::1], f8[::1], f8[::1], u8"  # BleChannel._row_arguments's
 
 
-@compiled("void(i8, i8, b1[:, ::1], i8[:, ::1], u1[:, ::1], f8[::1], f8[::1], i8, i8, f8, f8, f8, i8[:, ::1], "
-          "f8[:, ::1], f8[::1], f8[::1], f8[:, ::1])")
-def _budget_row(mode, rays, padded, sat, codes, loss_by_code, numbers, ai, aj, tcx, tcy, unit_tx, cells, centres,
-                d, unit_rx, terms):  # pragma: no cover - compiled
-    """The link budget from the cell (ai, aj) (centre (tcx, tcy), shadow field unit_tx) to each cell i
-    of `cells` (centre centres[i], 3D distance d[i], unit unit_rx[i]), the two taken lower cell first
-    (so a pair gives the same numbers either way round): terms[i] gets the path loss, the walls, the
-    wall loss, the shadowing and the mean power (columns _PATH_LOSS .. _POWER). `numbers`:
-    BleChannel._row_arguments's. The one implementation of the budget (docs/radio.md): the scalar
-    calls it for one receiver."""
-    ox, oy, res, wavelength, dh, min_d, bp, ref_loss, near10, far10, sigma, tx_dbm, g_tx, g_rx = (
+@compiled()  # no signature: compiled into its callers
+def _transmitter(numbers, key, ai, aj):
+    """(x, y, shadow field unit) of the centre of the transmitter's cell (ai, aj)."""
+    ox, oy, q, sigma, decorrelation = numbers[0], numbers[1], numbers[2], numbers[10], numbers[14]
+    tcx = ox + (ai + 0.5) * q
+    tcy = oy + (aj + 0.5) * q
+    return tcx, tcy, (field_unit(key, decorrelation, tcx, tcy) if sigma != 0.0 else 0.0)
+
+
+@compiled()  # no signature: compiled into its callers
+def _pair(mode, rays, padded, sat, codes, loss_by_code, numbers, key, ai, aj, tcx, tcy, unit_tx, bi, bj):
+    """The link budget from the transmitter's cell (ai, aj) (centre (tcx, tcy), shadow field unit_tx)
+    to the cell (bi, bj), the two taken lower cell first (so a pair gives the same numbers either way
+    round): (distance, path loss, walls, wall loss, shadowing, mean power). The one implementation of
+    the budget (docs/radio.md)."""
+    ox, oy, res, wavelength, dh, min_d, bp, ref_loss, near10, far10, sigma, tx_dbm, g_tx, g_rx, decorrelation = (
         numbers[0], numbers[1], numbers[2], numbers[3], numbers[4], numbers[5], numbers[6], numbers[7], numbers[8],
-        numbers[9], numbers[10], numbers[11], numbers[12], numbers[13])
-    sqrt2 = math.sqrt(2.0)
+        numbers[9], numbers[10], numbers[11], numbers[12], numbers[13], numbers[14])
+    cx = ox + (bi + 0.5) * res
+    cy = oy + (bj + 0.5) * res
+    d = py_hypot3(cx - tcx, cy - tcy, dh)
+    unit_rx = field_unit(key, decorrelation, cx, cy) if sigma != 0.0 else 0.0
+    if bi < ai or (bi == ai and bj < aj):  # (bi, bj) first
+        li, lj, hi, hj = bi, bj, ai, aj
+        pax, pay, pbx, pby = cx, cy, tcx, tcy
+        ua, ub = unit_rx, unit_tx
+    else:
+        li, lj, hi, hj = ai, aj, bi, bj
+        pax, pay, pbx, pby = tcx, tcy, cx, cy
+        ua, ub = unit_tx, unit_rx
+    dd = max(d, min_d)
+    path_loss = ref_loss + near10 * math.log10(min(dd, bp)) + (far10 * math.log10(dd / bp) if dd > bp else 0.0)
+    if mode == _NO_WALLS:
+        walls, wall_loss = 0, 0.0
+    elif mode == _FRESNEL:
+        walls, wall_loss = _fresnel_wall_loss(padded, sat, codes, loss_by_code, ox, oy, res, pax, pay, pbx, pby,
+                                              wavelength, dh, rays)
+    else:  # the cells' line, rows first; without materials every wall costs loss_by_code[0]
+        walls, line_loss = _wall_loss_on_line(padded, codes, loss_by_code, lj, li, hj, hi)
+        wall_loss = line_loss if mode == _LINE_TAGGED else walls * loss_by_code[0]
+    shadow = sigma * (ua + ub) / math.sqrt(2.0) if sigma != 0.0 else 0.0
+    return d, path_loss, walls, wall_loss, shadow, tx_dbm + g_tx + g_rx - path_loss - wall_loss - shadow
+
+
+@compiled(f"void({_ROW_ARGUMENTS}, i8, i8, i8[:, ::1], f8[:, ::1])")
+def _budget_row(mode, rays, padded, sat, codes, loss_by_code, numbers, key, ai, aj, cells, terms):  # pragma: no cover
+    """The link budget from the cell (ai, aj) to each cell i of `cells`: terms[i] gets the distance, the
+    path loss, the walls, the wall loss, the shadowing and the mean power (columns _DISTANCE .. _POWER).
+    The scalar calls it for one receiver."""
+    tcx, tcy, unit_tx = _transmitter(numbers, key, ai, aj)
     for i in range(terms.shape[0]):
-        bi = cells[i, 0]
-        bj = cells[i, 1]
-        if bi < ai or (bi == ai and bj < aj):  # (bi, bj) first
-            li, lj, hi, hj = bi, bj, ai, aj
-            pax, pay, pbx, pby = centres[i, 0], centres[i, 1], tcx, tcy
-            ua, ub = unit_rx[i], unit_tx
-        else:
-            li, lj, hi, hj = ai, aj, bi, bj
-            pax, pay, pbx, pby = tcx, tcy, centres[i, 0], centres[i, 1]
-            ua, ub = unit_tx, unit_rx[i]
-        dd = max(d[i], min_d)
-        path_loss = ref_loss + near10 * math.log10(min(dd, bp)) + (far10 * math.log10(dd / bp) if dd > bp else 0.0)
-        if mode == _NO_WALLS:
-            walls, wall_loss = 0, 0.0
-        elif mode == _FRESNEL:
-            walls, wall_loss = _fresnel_wall_loss(padded, sat, codes, loss_by_code, ox, oy, res, pax, pay, pbx, pby,
-                                                  wavelength, dh, rays)
-        else:  # the cells' line, rows first; without materials every wall costs loss_by_code[0]
-            walls, line_loss = _wall_loss_on_line(padded, codes, loss_by_code, lj, li, hj, hi)
-            wall_loss = line_loss if mode == _LINE_TAGGED else walls * loss_by_code[0]
-        shadow = sigma * (ua + ub) / sqrt2 if sigma != 0.0 else 0.0
+        d, path_loss, walls, wall_loss, shadow, power = _pair(mode, rays, padded, sat, codes, loss_by_code, numbers,
+                                                               key, ai, aj, tcx, tcy, unit_tx, cells[i, 0], cells[i, 1])
+        terms[i, _DISTANCE] = d
         terms[i, _PATH_LOSS] = path_loss
         terms[i, _WALLS] = walls
         terms[i, _WALL_LOSS] = wall_loss
         terms[i, _SHADOW] = shadow
-        terms[i, _POWER] = tx_dbm + g_tx + g_rx - path_loss - wall_loss - shadow
+        terms[i, _POWER] = power
+
+
+@compiled(f"void({_ROW_ARGUMENTS}, f8, f8, f8[:, ::1], f8[::1])")
+def _power_row(mode, rays, padded, sat, codes, loss_by_code, numbers, key, x, y, points, power):  # pragma: no cover
+    """The mean power from the place (x, y) to each place of `points` (m): the cells holding them, then
+    `_pair`'s budget, as mean_rx_power_dbm has it for each pair."""
+    ox, oy, q = numbers[0], numbers[1], numbers[2]
+    ai = math.floor((x - ox) / q)
+    aj = math.floor((y - oy) / q)
+    tcx, tcy, unit_tx = _transmitter(numbers, key, ai, aj)
+    for i in range(power.shape[0]):
+        bi = math.floor((points[i, 0] - ox) / q)
+        bj = math.floor((points[i, 1] - oy) / q)
+        power[i] = _pair(mode, rays, padded, sat, codes, loss_by_code, numbers, key, ai, aj, tcx, tcy, unit_tx,
+                         bi, bj)[5]

@@ -21,9 +21,10 @@ seed gives the same field in every process, whatever else drew random numbers be
 from __future__ import annotations
 
 import math
-from functools import lru_cache
 
 import numpy as np
+
+from rescuemesh.jit import compiled
 
 _MASK = (1 << 64) - 1
 _GOLDEN = 0x9E3779B97F4A7C15
@@ -41,6 +42,51 @@ def _splitmix64(x: int) -> int:
     z = ((z ^ (z >> 30)) * _MUL1) & _MASK
     z = ((z ^ (z >> 27)) * _MUL2) & _MASK
     return z ^ (z >> 31)
+
+
+_GOLDEN_U = np.uint64(_GOLDEN)
+_MUL1_U = np.uint64(_MUL1)
+_MUL2_U = np.uint64(_MUL2)
+_U11, _U27, _U30, _U31 = np.uint64(11), np.uint64(27), np.uint64(30), np.uint64(31)
+
+
+@compiled()  # no signature: compiled into its callers
+def _splitmix64_u(x):
+    """_splitmix64 on a uint64 (wrapping arithmetic, as the masks of the Python ints)."""
+    z = x + _GOLDEN_U
+    z = (z ^ (z >> _U30)) * _MUL1_U
+    z = (z ^ (z >> _U27)) * _MUL2_U
+    return z ^ (z >> _U31)
+
+
+@compiled()
+def _node_value(key, i, j):
+    """The lattice node (i, j)'s N(0, 1) value for the field's key (uint64): Box-Muller on two
+    uniforms hashed from (key, i, j). The Python it was (tests/oracles/shadowing.py) gives the same
+    number, bit for bit: the ints' two's complement is the uint64's, the uniforms are the same doubles
+    and log, cos and sqrt are the same libm calls."""
+    h = _splitmix64_u(_splitmix64_u(key ^ np.uint64(i)) ^ np.uint64(j))
+    h1 = _splitmix64_u(h)
+    h2 = _splitmix64_u(h1)
+    u1 = (float(h1 >> _U11) + 0.5) / _TWO_53
+    u2 = float(h2 >> _U11) / _TWO_53
+    return math.sqrt(-2.0 * math.log(u1)) * math.cos(2.0 * math.pi * u2)
+
+
+@compiled()
+def field_unit(key, decorrelation_m, x, y):
+    """F at (x, y) m of the field with `key` (ShadowField's, uint64) and lattice spacing `decorrelation_m`:
+    the nodes around the point bilinearly interpolated, over the root of the sum of squared weights."""
+    gx = x / decorrelation_m
+    gy = y / decorrelation_m
+    i = math.floor(gx)
+    j = math.floor(gy)
+    u = gx - i
+    v = gy - j
+    w00, w10, w01, w11 = (1 - u) * (1 - v), u * (1 - v), (1 - u) * v, u * v
+    s = (w00 * _node_value(key, i, j) + w10 * _node_value(key, i + 1, j) + w01 * _node_value(key, i, j + 1)
+         + w11 * _node_value(key, i + 1, j + 1))
+    return s / math.sqrt(w00 * w00 + w10 * w10 + w01 * w01 + w11 * w11)
 
 
 def _splitmix64_np(x: np.ndarray) -> np.ndarray:
@@ -69,17 +115,9 @@ class ShadowField:
         self.sigma_db = float(sigma_db)
         self.decorrelation_m = float(decorrelation_m)
         self._key = _splitmix64((self.seed ^ _SALT) & _MASK)
-        self._node = lru_cache(maxsize=1 << 14)(self._node_value)
+        self.key = np.uint64(self._key)  # what the compiled field (field_unit) takes
 
     # --- node values ---------------------------------------------------------------------------
-    def _node_value(self, i: int, j: int) -> float:
-        h = _splitmix64(_splitmix64(self._key ^ (i & _MASK)) ^ (j & _MASK))
-        h1 = _splitmix64(h)
-        h2 = _splitmix64(h1)
-        u1 = ((h1 >> 11) + 0.5) / _TWO_53
-        u2 = (h2 >> 11) / _TWO_53
-        return math.sqrt(-2.0 * math.log(u1)) * math.cos(2.0 * math.pi * u2)
-
     def _node_values(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:
         key = np.uint64(self._key)
         h = _splitmix64_np(_splitmix64_np(key ^ i.astype(np.int64).astype(np.uint64))
@@ -92,17 +130,9 @@ class ShadowField:
 
     # --- the field -----------------------------------------------------------------------------
     def unit(self, x: float, y: float) -> float:
-        """F at (x, y) in m: standard normal, smooth in space, fixed by the seed."""
-        gx = x / self.decorrelation_m
-        gy = y / self.decorrelation_m
-        i = math.floor(gx)
-        j = math.floor(gy)
-        u = gx - i
-        v = gy - j
-        w00, w10, w01, w11 = (1 - u) * (1 - v), u * (1 - v), (1 - u) * v, u * v
-        node = self._node
-        s = w00 * node(i, j) + w10 * node(i + 1, j) + w01 * node(i, j + 1) + w11 * node(i + 1, j + 1)
-        return s / math.sqrt(w00 * w00 + w10 * w10 + w01 * w01 + w11 * w11)
+        """F at (x, y) in m: standard normal, smooth in space, fixed by the seed (`field_unit`, which the
+        link budget's compiled row calls too)."""
+        return field_unit(self.key, self.decorrelation_m, float(x), float(y))
 
     def unit_many(self, points: np.ndarray) -> np.ndarray:
         """F at each of `points` (shape (N, 2), m); equals `unit` to rounding."""

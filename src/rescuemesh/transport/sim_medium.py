@@ -426,8 +426,7 @@ class SimMedium:
         if not valid.all():
             missing = np.flatnonzero(~valid & self._enabled)
             if len(missing):
-                places = self._places
-                values = self.channel.mean_rx_power_row(places[s], np.array([places[r] for r in missing.tolist()]))
+                values = self.channel.mean_rx_power_row(self._places[s], self._xy[missing])
                 self._mean[s, missing] = values
                 valid[missing] = True
                 if self.law.symmetric:
