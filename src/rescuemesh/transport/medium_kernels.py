@@ -229,14 +229,24 @@ def response_delays(receivers, addresses, sender, seed, counter, low, high, out)
         out[r] = low + counter_uniform(counter_key(seed, RESPONSE_DELAY, addresses[r], me, counter), 0) * (high - low)
 
 
-@compiled("void(f8[:, ::1], f8, f8, f8, f8[:, ::1])")
-def cells_of(xy, quantum_m, origin_x, origin_y, out):
-    """The keys the mean power depends on: each position's cell (as floats), or the position itself
-    when `quantum_m` is 0."""
-    for i in range(xy.shape[0]):
+@compiled("void(f8[:, ::1], f8, f8, f8, f8[:, ::1], b1[:, ::1])")
+def move_radios(xy, quantum_m, origin_x, origin_y, cells, valid):
+    """The radios are at `xy` now: a radio whose cell (the key the mean power depends on: the position's
+    cell as floats, or the position itself when `quantum_m` is 0) is not `cells[i]` gets it there, and
+    every mean power of a pair it is in stops being valid (`valid[i, :]`, `valid[:, i]`; a radio's own
+    pair stays valid: it never hears itself). A cell of NaN (not yet known) is never the radio's."""
+    n = xy.shape[0]
+    for i in range(n):
         if quantum_m > 0.0:
-            out[i, 0] = math.floor((xy[i, 0] - origin_x) / quantum_m)
-            out[i, 1] = math.floor((xy[i, 1] - origin_y) / quantum_m)
+            ci = math.floor((xy[i, 0] - origin_x) / quantum_m)
+            cj = math.floor((xy[i, 1] - origin_y) / quantum_m)
         else:
-            out[i, 0] = xy[i, 0]
-            out[i, 1] = xy[i, 1]
+            ci = xy[i, 0]
+            cj = xy[i, 1]
+        if ci != cells[i, 0] or cj != cells[i, 1]:
+            cells[i, 0] = ci
+            cells[i, 1] = cj
+            for j in range(n):
+                valid[i, j] = False
+                valid[j, i] = False
+            valid[i, i] = True

@@ -296,7 +296,6 @@ class SimMedium:
         self._xy = np.zeros((0, 2))
         self._places: list[tuple[float, float]] = []
         self._cells = np.zeros((0, 2))
-        self._new_cells = np.zeros((0, 2))
         self._positions_fresh = False
         self._mean = np.zeros((0, 0))
         self._mean_valid = np.zeros((0, 0), dtype=bool)
@@ -326,7 +325,6 @@ class SimMedium:
         self._on_air_until = np.append(self._on_air_until, -np.inf)
         self._xy = np.zeros((n, 2))
         self._cells = np.full((n, 2), np.nan)  # no cell yet: every pair is computed when first needed
-        self._new_cells = np.zeros((n, 2))
         self._positions_fresh = False
         self._mean = np.full((n, n), -np.inf)
         self._mean_valid = np.eye(n, dtype=bool)  # a radio never hears itself
@@ -402,18 +400,9 @@ class SimMedium:
         """Read every radio's position (once per pump or flush) and forget the mean powers of the
         pairs of which a radio moved to another cell."""
         self._places = places = [radio.position() for radio in self._order_of]
-        xy = self._xy
-        xy[:] = places
+        self._xy[:] = places
         law = self.law
-        new = self._new_cells
-        k.cells_of(xy, law.quantum_m, law.origin[0], law.origin[1], new)
-        moved = np.flatnonzero((new != self._cells).any(axis=1))
-        if len(moved):
-            valid = self._mean_valid
-            valid[moved, :] = False
-            valid[:, moved] = False
-            valid[moved, moved] = True
-            self._cells[moved] = new[moved]
+        k.move_radios(self._xy, law.quantum_m, law.origin[0], law.origin[1], self._cells, self._mean_valid)
         self._positions_fresh = True
 
     def _mean_row(self, radio: _Radio) -> np.ndarray:
