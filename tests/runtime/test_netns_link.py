@@ -192,7 +192,10 @@ def test_follow_completes_between_two_network_namespaces_with_20_percent_loss(tm
     print(f"\nnetns Follow: {link.how}; {time.monotonic() - started:.1f} s; {counts}; "
           f"robot_1 {one['mission']}; robot_2 drove {two['path_length_m']} m")
     assert one["mission"]["follow_result"] == "ACCEPTED" and one["mission"]["goal_result"] == "DONE"
-    assert ["follow", "CANCELLED"] == [two["behaviours"][0]["name"], two["behaviours"][0]["result"]]
+    # FAILED "link lost" here has meant a TCP stall longer than the link-loss rule's silence and
+    # reconnect window (8.5 s with nothing heard, once in a full `make test`): the log says so
+    assert ["follow", "CANCELLED"] == [two["behaviours"][0]["name"], two["behaviours"][0]["result"]], \
+        (two["log"], two["link"], counts)
     leader_end, follower_start, follower_end = one["final_pose"], two["start"], two["final_pose"]
     gap_before = ((leader_end[0] - follower_start[0]) ** 2 + (leader_end[1] - follower_start[1]) ** 2) ** 0.5
     gap_after = ((leader_end[0] - follower_end[0]) ** 2 + (leader_end[1] - follower_end[1]) ** 2) ** 0.5
