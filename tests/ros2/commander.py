@@ -2,7 +2,8 @@
 (/ROBOT/comm_protocol/send_command) and prints each feedback and the result as JSON lines; for tests/ros2.
 
 Owns: an rclpy ActionClient. Must not know: rescuemesh (it imports only the generated messages).
-`python commander.py ROBOT '{"type": "COMMAND_GOTO", "receiver": "robot_2", "x": 1.0, "y": 0.0}'`
+`python commander.py ROBOT '{"type": "COMMAND_GOTO", "receiver": "robot_2", "x": 1.0, "y": 0.0}'`;
+`--copies N` sends N such goals at once and prints each one's result (feedback is not printed then).
 """
 
 import argparse
@@ -20,6 +21,7 @@ def main() -> int:
     parser.add_argument("robot")
     parser.add_argument("request", help="JSON: type, receiver, and x, y, radius, period, count, frame_id, sender")
     parser.add_argument("--timeout", type=float, default=60.0)
+    parser.add_argument("--copies", type=int, default=1, help="send this many goals at once")
     args = parser.parse_args()
     request = json.loads(args.request)
     rclpy.init()
@@ -42,6 +44,8 @@ def main() -> int:
         print(json.dumps({"feedback": fb.result, "progress": fb.progress, "confirm_type": fb.confirm.type,
                           "ref_type": fb.confirm.ref_type}), flush=True)
 
+    if args.copies > 1:
+        return _burst(node, client, SendCommand.Goal(command=command), args.copies, args.timeout)
     sent = client.send_goal_async(SendCommand.Goal(command=command), feedback_callback=on_feedback)
     rclpy.spin_until_future_complete(node, sent, timeout_sec=args.timeout)
     handle = sent.result()
@@ -53,14 +57,44 @@ def main() -> int:
     if not result_future.done():
         print(json.dumps({"error": "no result in time"}), flush=True)
         return 5
-    outcome = result_future.result()
+    _print_result(result_future.result())
+    node.destroy_node()
+    rclpy.shutdown()
+    return 0
+
+
+def _print_result(outcome) -> None:
     r = outcome.result
     print(json.dumps({"status": outcome.status, "result": r.result, "reason": r.reason, "seq": r.seq,
                       "error": r.error, "confirm_result": r.confirm.result, "confirm_sender": r.confirm.sender}),
           flush=True)
-    node.destroy_node()
-    rclpy.shutdown()
-    return 0
+
+
+def _burst(node, client, goal, copies: int, timeout_s: float) -> int:
+    """`copies` goals sent at once; each result printed as it comes. 4 if one was not accepted, 5 if
+    any had no result in time."""
+    import time
+
+    deadline = time.monotonic() + timeout_s
+    handles = [client.send_goal_async(goal) for _ in range(copies)]
+    results, printed = [], 0
+    while time.monotonic() < deadline:
+        rclpy.spin_once(node, timeout_sec=0.1)
+        for future in [f for f in handles if f.done()]:
+            handles.remove(future)
+            handle = future.result()
+            if handle is None or not handle.accepted:
+                print(json.dumps({"error": "goal not accepted"}), flush=True)
+                return 4
+            results.append(handle.get_result_async())
+        for future in [f for f in results if f.done()]:
+            results.remove(future)
+            _print_result(future.result())
+            printed += 1
+        if printed == copies:
+            return 0
+    print(json.dumps({"error": "no result in time"}), flush=True)
+    return 5
 
 
 if __name__ == "__main__":

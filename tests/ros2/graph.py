@@ -65,10 +65,11 @@ class Ros2Graph:
         wait_for(lambda: "reader: subscribed" in proc.stdout(), 30.0, "the reader to subscribe")
         return proc
 
-    def command(self, robot: str, request: dict, timeout_s: float = 60.0) -> list[dict]:
-        """tests/ros2/commander.py: `robot` sends `request` through its action; the JSON lines printed."""
+    def command(self, robot: str, request: dict, timeout_s: float = 60.0, copies: int = 1) -> list[dict]:
+        """tests/ros2/commander.py: `robot` sends `request` through its action (`copies` goals of it at
+        once); the JSON lines printed."""
         proc = self.start("commander", [sys.executable, str(HERE / "commander.py"), robot, json.dumps(request),
-                                        "--timeout", str(timeout_s)])
+                                        "--timeout", str(timeout_s), "--copies", str(copies)])
         code = proc.wait(timeout_s + 30)
         lines = [json.loads(line) for line in proc.stdout().splitlines() if line.startswith("{")]
         assert code == 0, (code, lines, proc.stderr()[-2000:])

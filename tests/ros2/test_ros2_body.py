@@ -32,6 +32,26 @@ def test_a_ros2_robot_process_drives_the_fake_robot_to_a_goal(ros2):
     assert "warning: no --pose-topic" in robot.stderr()  # its odom frame is taken as the map frame
 
 
+def test_a_burst_of_action_goals_does_not_stall_a_driving_robots_loop(ros2):
+    # the action server waits for each command's end in its callback, on the commands node's own
+    # multi-threaded executor: eight goals waiting at once (Stops to a robot that never answers, each
+    # given up by the protocol after its retries) are all answered, and the loop drives on meanwhile
+    # without a cmd_vel silence (measured 0.055 s; with the action on the sensors' single-threaded
+    # executor the goals wait in turn and half of them get no result in a minute)
+    ros2.fake_robot("robot_1", "0,0,0")
+    ros2.wait_robots("robot_1")
+    robot = ros2.robot("robot_1", "--listen", _listen(), "--goal", "2.5,0", "--exit-when-done")
+    ros2.wait_for_state("robot_1", lambda s: s["v"] > 0.05, 60.0, "robot_1 to drive")
+    started = time.monotonic()
+    lines = ros2.command("robot_1", {"type": "COMMAND_STOP", "receiver": "robot_2"}, copies=8, timeout_s=60)
+    answered_s = time.monotonic() - started
+    assert robot.wait(90) == 0, robot.stdout()[-2000:] + robot.stderr()[-2000:]
+    assert len(lines) == 8 and all("result" in line and line["result"] != "REFUSED" for line in lines), lines
+    state = ros2.state("robot_1")
+    assert state["x"] > 2.0 and state["stop_cause"] == "zero_twist", state
+    assert state["longest_cmd_gap_s"] < 0.5 and state["timeouts"] == 0, (state, answered_s)
+
+
 def test_remapped_topics_twist_stamped_and_flags_reach_the_ros2_body(ros2):
     # a TurtleBot-4-like base: odometry on /tb/odom, TwistStamped on cmd_vel
     ros2.fake_robot("robot_3", "0,0,0", "--twist-stamped", "--odom-topic", "/tb/odom")
