@@ -9,7 +9,7 @@ math.hypot calls, differs from it in the last bit for about one pair in a thousa
 change with it. Both functions here are that algorithm, operation for operation, on three coordinates:
 a third coordinate of 0 adds exact zeros to every sum, so py_hypot(a, b) is py_hypot3(a, b, 0.0) bit for
 bit, as math.hypot(a, b) is math.hypot(a, b, 0.0). Checked against math.hypot on random and special
-values in tests/oracles/test_nav_pursuit.py.
+values in tests/oracles/test_pymath.py.
 """
 
 from __future__ import annotations

@@ -9,6 +9,7 @@ Owns: an rclpy ActionClient. Must not know: rescuemesh (it imports only the gene
 import argparse
 import json
 import sys
+import time
 
 import rclpy
 from rclpy.action import ActionClient
@@ -73,8 +74,6 @@ def _print_result(outcome) -> None:
 def _burst(node, client, goal, copies: int, timeout_s: float) -> int:
     """`copies` goals sent at once; each result printed as it comes. 4 if one was not accepted, 5 if
     any had no result in time."""
-    import time
-
     deadline = time.monotonic() + timeout_s
     handles = [client.send_goal_async(goal) for _ in range(copies)]
     results, printed = [], 0

@@ -119,8 +119,7 @@ class ShadowField:
 
     # --- node values ---------------------------------------------------------------------------
     def _node_values(self, i: np.ndarray, j: np.ndarray) -> np.ndarray:
-        key = np.uint64(self._key)
-        h = _splitmix64_np(_splitmix64_np(key ^ i.astype(np.int64).astype(np.uint64))
+        h = _splitmix64_np(_splitmix64_np(self.key ^ i.astype(np.int64).astype(np.uint64))
                            ^ j.astype(np.int64).astype(np.uint64))
         h1 = _splitmix64_np(h)
         h2 = _splitmix64_np(h1)

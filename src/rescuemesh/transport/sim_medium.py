@@ -294,7 +294,6 @@ class SimMedium:
         #: move inside one), the channel's cell of each, and the mean power between every two radios
         #: with whether it is still valid (both radios in the cells it was computed for).
         self._xy = np.zeros((0, 2))
-        self._places: list[tuple[float, float]] = []
         self._cells = np.zeros((0, 2))
         self._positions_fresh = False
         self._mean = np.zeros((0, 0))
@@ -399,8 +398,7 @@ class SimMedium:
     def _read_positions(self) -> None:
         """Read every radio's position (once per pump or flush) and forget the mean powers of the
         pairs of which a radio moved to another cell."""
-        self._places = places = [radio.position() for radio in self._order_of]
-        self._xy[:] = places
+        self._xy[:] = [radio.position() for radio in self._order_of]
         law = self.law
         k.move_radios(self._xy, law.quantum_m, law.origin[0], law.origin[1], self._cells, self._mean_valid)
         self._positions_fresh = True
@@ -415,7 +413,7 @@ class SimMedium:
         if not valid.all():
             missing = np.flatnonzero(~valid & self._enabled)
             if len(missing):
-                values = self.channel.mean_rx_power_row(self._places[s], self._xy[missing])
+                values = self.channel.mean_rx_power_row(tuple(self._xy[s].tolist()), self._xy[missing])
                 self._mean[s, missing] = values
                 valid[missing] = True
                 if self.law.symmetric:
