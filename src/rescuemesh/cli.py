@@ -161,7 +161,10 @@ def build_parser() -> argparse.ArgumentParser:
                      help="CRC-32 frames, no authentication or encryption (anyone on the radio can command)")
     run.add_argument("--quiet", action="store_true", help="no progress display")
     run.add_argument("--processes", action="store_true",
-                     help="each robot in its own process, the world in this one, over Zenoh on loopback")
+                     help="each robot in its own process, the world in this one (docs/processes.md)")
+    run.add_argument("--control", choices=["pipes", "zenoh"], default="pipes",
+                     help="with --processes: the world calls its robot processes over a pair of pipes each "
+                          "(default, the fastest) or over Zenoh on loopback")
     run.add_argument("--realtime", action="store_true", help="pace the run to the wall clock (default: as fast as it goes)")
     run.add_argument("--live", action="store_true",
                      help="also serve the run's recording on a Foxglove WebSocket on 127.0.0.1 while it runs "
@@ -179,7 +182,10 @@ def build_parser() -> argparse.ArgumentParser:
     robot = sub.add_parser("robot", help="run one robot's software: brain, navigation, protocol, mesh (for a "
                                          "simulated world; with --link zenoh on a real network: docs/networks.md)")
     robot.add_argument("--name", required=True, help="robot name, robot_1 .. robot_254")
-    robot.add_argument("--connect", required=True, metavar="tcp/HOST:PORT", help="the world's endpoint")
+    robot.add_argument("--connect", metavar="tcp/HOST:PORT", help="the world's endpoint")
+    robot.add_argument("--control-fds", metavar="R,W", default=None,
+                       help="instead of --connect: read the world's requests from inherited pipe R and answer "
+                            "on W (what run --processes gives the robots it starts)")
     robot.add_argument("--run-id", default="default", help="the world's run id (default: default)")
     robot.add_argument("--key", type=Path, default=None, metavar="FILE", help="team key file, when the world uses one")
     robot.add_argument("--wait", type=float, default=30.0, metavar="S", help="how long to wait for the world")
@@ -387,7 +393,7 @@ def _early_team(args, options, out: Path):
     process imports MuJoCo and builds the world (a robot takes about as long to import and connect).
     Returns the run's ProcessOptions and the scenario, built once for the team and the run."""
     from rescuemesh.maps import MapError, load_map, office_map_path
-    from rescuemesh.runtime.processes.spawn import ProcessOptions, RobotProcesses, free_endpoint
+    from rescuemesh.runtime.processes.spawn import ControlCarrier, ProcessOptions, RobotProcesses, free_endpoint
     from rescuemesh.scenarios import ScenarioError, get_scenario
 
     try:
@@ -396,11 +402,12 @@ def _early_team(args, options, out: Path):
         names = list(scenario.starts()) if cls.runs_as_processes else []
     except (ScenarioError, MapError, ValueError) as error:
         raise UsageError(str(error)) from None
-    listen = free_endpoint()
-    team = RobotProcesses(listen, "default", out / "processes", key_file=args.key)
+    control = ControlCarrier(args.control)
+    listen = free_endpoint() if control is ControlCarrier.ZENOH else None
+    team = RobotProcesses(listen, "default", out / "processes", key_file=args.key, control=control)
     for name in names:
         team.start(name)
-    return ProcessOptions(listen=listen, key_file=args.key, team=team), scenario
+    return ProcessOptions(listen=listen, key_file=args.key, team=team, control=control), scenario
 
 
 def _endpoint(text: str) -> str:
@@ -441,11 +448,41 @@ def _robot(args) -> int:
         except KeyFileError as error:
             raise UsageError(str(error)) from None
     try:
+        if args.control_fds is not None:
+            if args.connect is not None:
+                raise UsageError("give --connect or --control-fds, not both")
+            from rescuemesh.runtime.processes.robot_process import serve_robot_over_pipes
+
+            requests_fd, replies_fd = _control_fds(args.control_fds)
+            return serve_robot_over_pipes(args.name, requests_fd, replies_fd, team_key=key)
+        if args.connect is None:
+            raise UsageError("give the world's endpoint: --connect tcp/HOST:PORT")
         return serve_robot(args.name, _endpoint(args.connect), run=_run_id(args.run_id), team_key=key,
                            wait_s=args.wait)
     except ControlError as error:
         print(f"rescuemesh: error: {error}", file=sys.stderr)
         return EXIT_FAILED
+
+
+def _control_fds(text: str) -> tuple[int, int]:
+    """`--control-fds R,W`: two open pipe file descriptors this process inherited."""
+    import stat
+
+    parts = text.split(",")
+    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+        raise UsageError(f"--control-fds takes R,W: two file descriptor numbers, got {text!r}")
+    fds = tuple(int(p) for p in parts)
+    for fd, end in zip(fds, ("R", "W")):
+        try:
+            mode = os.fstat(fd).st_mode
+        except OSError:
+            raise UsageError(f"--control-fds: {end} = {fd} is not an open file descriptor "
+                             f"(run --processes hands the robots it starts a pair of pipes)") from None
+        if not stat.S_ISFIFO(mode):
+            raise UsageError(f"--control-fds: {end} = {fd} is not a pipe")
+    if fds[0] == fds[1]:
+        raise UsageError("--control-fds: R and W must be two pipes")
+    return fds
 
 
 def _linked_robot(argv: list[str]) -> int:

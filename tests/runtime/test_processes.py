@@ -1,4 +1,5 @@
-"""Robots as processes over Zenoh: the same run as in one process, and the faults of issue 9.
+"""Robots as processes, over pipes (`run --processes`' default) and over Zenoh: the same run as in one
+process, and the faults of issue 9.
 
 Every process a test starts is ended in a finally block; every wait is bounded.
 """
@@ -20,7 +21,8 @@ from rescuemesh.protocol import ResultCode
 from rescuemesh.robot import events as ev
 from rescuemesh.runtime.processes.control import Keys
 from rescuemesh.runtime.processes.process_world import ProcessRuntime, WorldHost
-from rescuemesh.runtime.processes.spawn import RobotProcesses, free_endpoint
+from rescuemesh.runtime.processes.pipes import PipeHost
+from rescuemesh.runtime.processes.spawn import ControlCarrier, RobotProcesses, free_endpoint
 from rescuemesh.runtime.processes.remote import RobotGone
 from rescuemesh.scenarios import ScenarioOptions
 from rescuemesh.scenarios.base import CommandRequest
@@ -39,7 +41,8 @@ def _result(folder: Path) -> dict:
 
 
 @pytest.mark.parametrize("scenario, args", [("follow", []), ("stop", ["--loss", "0.2", "--seed", "3"]),
-                                            ("move-around", ["--loss", "0.2", "--seed", "2"])])
+                                            ("move-around", ["--loss", "0.2", "--seed", "2"]),
+                                            ("follow", ["--control", "zenoh"])])
 def test_a_run_in_processes_is_the_same_run_as_in_one_process(tmp_path, scenario, args):
     one = subprocess.run(RESCUEMESH + ["run", scenario, "--quiet", "--out", str(tmp_path / "one")] + args,
                          capture_output=True, text=True, timeout=120)
@@ -49,6 +52,7 @@ def test_a_run_in_processes_is_the_same_run_as_in_one_process(tmp_path, scenario
     assert _result(tmp_path / "many") == _result(tmp_path / "one")
     runtime = json.loads((tmp_path / "many" / "result.json").read_text())["runtime"]
     assert runtime["kind"] == "processes"
+    assert runtime["control_plane"]["carrier"] == ("zenoh" if "zenoh" in args else "pipes")
     names = [p["name"] for p in runtime["processes"]]
     assert names == ["world", "robot_1", "robot_2", "robot_3"]
     assert len({p["pid"] for p in runtime["processes"]}) == 4 and all(p["cpu_s"] > 0 for p in runtime["processes"])
@@ -129,11 +133,16 @@ def _accepted(rt, commander: str, peer: str, send_name: str, limit_s: float = 10
     return took
 
 
-def test_a_killed_robot_is_lost_its_follower_halts_and_it_rejoins_and_is_commanded_again(tmp_path):
+@pytest.mark.parametrize("control", list(ControlCarrier))
+def test_a_killed_robot_is_lost_its_follower_halts_and_it_rejoins_and_is_commanded_again(tmp_path, control):
     scenario = FollowScenario(ScenarioOptions(seed=1), load_map(office_map_path()))
-    listen = free_endpoint()
-    team = RobotProcesses(listen, "faults", tmp_path)
-    host = WorldHost(listen, run="faults", control_key=team.control_key)
+    if control is ControlCarrier.ZENOH:
+        listen = free_endpoint()
+        team = RobotProcesses(listen, "faults", tmp_path)
+        host = WorldHost(listen, run="faults", control_key=team.control_key)
+    else:
+        team = RobotProcesses(None, "faults", tmp_path, control=control)
+        host = PipeHost(team.channels, team.control_key)
     rt = None
     try:
         for name in scenario.starts():

@@ -93,7 +93,7 @@ def run_bench(out: Path, *, seed: int = 0) -> int:
 
 
 def _process_figures(seed: int, one_process: dict) -> dict:
-    """The same follow with each robot in its own process over Zenoh on loopback (lockstep), run as
+    """The same follow with each robot in its own process (lockstep, over pipes: the default), run as
     `rescuemesh run follow --processes`, beside the one-process figure; set-up (world built, robot
     processes joined) apart. Neither counts importing the world; the command starts its robots first."""
     with tempfile.TemporaryDirectory(prefix="rescuemesh-bench-") as folder:
@@ -110,8 +110,9 @@ def _process_figures(seed: int, one_process: dict) -> dict:
     figures["same_result"] = _comparable(result) == _comparable(one_process)
     figures["loop_ratio"] = _ratio(figures)
     figures["goal_real_time_factor"] = PROCESSES_RTF_GOAL
+    figures["carrier"] = result["runtime"]["control_plane"]["carrier"]
     p, o = figures["processes"], figures["one_process"]
-    print(f"processes       : follow with 4 processes over Zenoh {p['real_time_factor']}x real time "
+    print(f"processes       : follow with 4 processes over {figures['carrier']} {p['real_time_factor']}x real time "
           f"(goal >= {PROCESSES_RTF_GOAL:g}x; {p['setup_s']:.2f} s set-up, loop alone {p['loop_real_time_factor']}x) "
           f"beside {o['real_time_factor']}x in one process (loop alone {o['loop_real_time_factor']}x); "
           f"same result: {'yes' if figures['same_result'] else 'NO'}; loop ratio {figures['loop_ratio']} "
@@ -141,9 +142,10 @@ def _process_convoy_figures(seed: int) -> dict:
             if kind == "one_process":
                 one = r
         figures["same_result"] = _comparable(r) == _comparable(one)
+        figures["carrier"] = r["runtime"]["control_plane"]["carrier"]
     figures["loop_ratio"] = _ratio(figures)
     p, o = figures["processes"], figures["one_process"]
-    print(f"processes       : convoy of 10 with 11 processes, loop alone {p['loop_real_time_factor']}x beside "
+    print(f"processes       : convoy of 10 with 11 processes over {figures['carrier']}, loop alone {p['loop_real_time_factor']}x beside "
           f"{o['loop_real_time_factor']}x in one process: ratio {figures['loop_ratio']} (goal >= "
           f"{PROCESSES_RATIO_GOAL:g}; {p['setup_s']:.2f} s set-up); same result: {'yes' if figures['same_result'] else 'NO'}")
     return figures

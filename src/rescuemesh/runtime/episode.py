@@ -60,15 +60,25 @@ def build_runtime(map_model: MapModel, starts: Mapping[str, Pose2D], config: Sim
 
         return SimRuntime(map_model, dict(starts), config)
     from rescuemesh.runtime.processes.process_world import ProcessRuntime, WorldHost, world_control_key
-    from rescuemesh.runtime.processes.spawn import RobotProcesses, free_endpoint
+    from rescuemesh.runtime.processes.spawn import ControlCarrier, RobotProcesses, free_endpoint
 
-    listen = processes.listen or free_endpoint()
+    over_pipes = processes.spawn and processes.control is ControlCarrier.PIPES
+    listen = None if over_pipes else processes.listen or free_endpoint()
     team = processes.team
     if processes.spawn and team is None:
         log_dir = log_dir if log_dir is not None else Path(cleanup.enter_context(tempfile.TemporaryDirectory()))
-        team = RobotProcesses(listen, processes.run_id, log_dir, key_file=processes.key_file)
+        team = RobotProcesses(listen, processes.run_id, log_dir, key_file=processes.key_file,
+                              control=processes.control)
+    if processes.spawn and team.control is not processes.control:
+        raise ValueError(f"robot processes started over {team.control.value}, the run's control plane is "
+                         f"{processes.control.value}")
     control_key = world_control_key(team_key, team.control_key if processes.spawn else None)
-    host = WorldHost(listen, processes.run_id, control_key=control_key)
+    if over_pipes:
+        from rescuemesh.runtime.processes.pipes import PipeHost
+
+        host = PipeHost(team.channels, control_key, log_dir=team.log_dir)
+    else:
+        host = WorldHost(listen, processes.run_id, control_key=control_key)
     cleanup.callback(host.close)
     if processes.spawn:
         cleanup.callback(team.close)

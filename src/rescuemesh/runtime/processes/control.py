@@ -40,7 +40,7 @@ from rescuemesh.runtime.processes.control_codec import MAX_MESSAGE_BYTES, CodecE
 from rescuemesh.transport.handoff import Handoff
 from rescuemesh.transport.zenoh_link import check_endpoint, session_config
 
-__all__ = ["CALL_TIMEOUT_S", "CallClient", "CallServer", "ControlError", "ControlKey", "Keys", "Liveliness",
+__all__ = ["CALL_TIMEOUT_S", "Answerer", "CallClient", "CallServer", "Caller", "ControlError", "ControlKey", "Keys", "Liveliness",
            "PUBLIC_CONTROL_KEY", "RemoteError", "check_endpoint", "control_key_from_team_key", "open_session"]
 
 log = logging.getLogger("rescuemesh.control")
@@ -194,41 +194,27 @@ def _payload(carrier) -> bytes:
     return payload.to_bytes()
 
 
-class CallServer:
-    """A robot's side: authenticated requests from its world on its request key, answered at once on
-    Zenoh's thread by `handler`, one at a time (the brain is not thread-safe), on its reply key. A
-    request that is forged, replayed, malformed or not for this robot is refused (logged, counted)
-    and not answered.
+class Answerer:
+    """A robot's side of the plane, whatever carries it: an authenticated request from its world in,
+    the sealed reply out (`handler` answers it). A request that is forged, replayed, malformed or not
+    for this robot is refused (logged, counted) and not answered.
 
     A set-up must carry this process's nonce (its answer to a Hello), so a set-up recorded in another
     run is refused; the set-up binds the world's run nonce, and from then on each request's counter
     must exceed the last one accepted."""
 
-    def __init__(self, session: zenoh.Session, keys: Keys, name: str, control_key: ControlKey,
-                 handler: Callable[[Any], Any]) -> None:
+    def __init__(self, name: str, control_key: ControlKey, handler: Callable[[Any], Any]) -> None:
         self.name, self.control_key, self.handler = name, control_key, handler
         self.nonce = os.urandom(16)  # this process's: a set-up must echo it
         self.refusals = Refusals(name)
         self.calls = 0
         self._world: bytes | None = None  # the run nonce of the world that set us up
         self._last = 0
-        self._lock = threading.Lock()
-        self._closed = False
-        self._publisher = session.declare_publisher(keys.robot_reply(name), **_PROMPT)
-        self._subscriber = session.declare_subscriber(keys.robot_request(name), self._on_request)
 
-    def _on_request(self, sample) -> None:
-        with self._lock:
-            reply = self._answer(sample)
-            if reply is not None and not self._closed:
-                try:
-                    self._publisher.put(reply)
-                except zenoh.ZError:
-                    pass  # the session is closing
-
-    def _answer(self, sample) -> bytes | None:
+    def answer(self, data: bytes) -> bytes | None:
+        """The sealed reply to one request, or None for a request refused."""
         try:
-            direction, nonce, counter, robot, body = self.control_key.open(_payload(sample))
+            direction, nonce, counter, robot, body = self.control_key.open(data)
             if direction != _REQUEST or robot != self.name:
                 raise ControlError(f"a {'reply' if direction == _REPLY else 'message'} for {robot!r} on {self.name}'s key")
             request = decode(body)
@@ -260,6 +246,32 @@ class CallServer:
             payload = encode(msg.ErrorReply(f"{type(error).__name__}: {error}", traceback.format_exc()))
         return self.control_key.seal(_REPLY, nonce, counter, self.name, payload)
 
+
+class CallServer(Answerer):
+    """A robot's side over Zenoh: requests on its request key, answered at once on Zenoh's thread,
+    one at a time (the brain is not thread-safe), on its reply key."""
+
+    def __init__(self, session: zenoh.Session, keys: Keys, name: str, control_key: ControlKey,
+                 handler: Callable[[Any], Any]) -> None:
+        super().__init__(name, control_key, handler)
+        self._lock = threading.Lock()
+        self._closed = False
+        self._publisher = session.declare_publisher(keys.robot_reply(name), **_PROMPT)
+        self._subscriber = session.declare_subscriber(keys.robot_request(name), self._on_request)
+
+    def _on_request(self, sample) -> None:
+        with self._lock:
+            try:
+                reply = self.answer(_payload(sample))
+            except ControlError as error:  # over the size limit
+                self.refusals.refuse(str(error))
+                return
+            if reply is not None and not self._closed:
+                try:
+                    self._publisher.put(reply)
+                except zenoh.ZError:
+                    pass  # the session is closing
+
     def close(self) -> None:
         """Stop answering. The reply to the last request (a Bye) may still be going out on Zenoh's
         thread: the publisher is undeclared only after it (undeclaring it during a put raised
@@ -270,14 +282,14 @@ class CallServer:
             self._publisher.undeclare()
 
 
-class CallClient:
-    """The world's side: calls to robots by name, one at a time or to several at once. A reply that
-    does not authenticate as the robot asked, for this call, is dropped and counted; so is any reply
-    beyond _MAX_WAITING queued for one robot (a flood)."""
+class Caller:
+    """The world's side of the plane, whatever carries it: calls to robots by name, one at a time or
+    to several at once. A reply that does not authenticate as the robot asked, for this call, is
+    dropped and counted. A carrier supplies `_put` (send one sealed request) and `_take` (the next
+    message from a robot, None when its process is gone, queue.Empty after `timeout_s`)."""
 
-    def __init__(self, session: zenoh.Session, keys: Keys, control_key: ControlKey, *,
-                 timeout_s: float = CALL_TIMEOUT_S) -> None:
-        self.session, self.keys, self.control_key, self.timeout_s = session, keys, control_key, timeout_s
+    def __init__(self, control_key: ControlKey, *, timeout_s: float = CALL_TIMEOUT_S) -> None:
+        self.control_key, self.timeout_s = control_key, timeout_s
         self.nonce = os.urandom(16)  # this run's
         self.refusals = Refusals("world")
         self.calls = 0
@@ -285,12 +297,98 @@ class CallClient:
         self.requests: Counter[str] = Counter()
         self.rounds: Counter[str] = Counter()
         self._counter = itertools.count(1)
+
+    def expect(self, robot: str) -> None:
+        """Robot `robot` (re)joins: forget what its previous process left (late replies, its leaving)."""
+
+    def _put(self, robot: str, payload: bytes) -> None:
+        raise NotImplementedError
+
+    def _take(self, robot: str, timeout_s: float) -> bytes | None:
+        raise NotImplementedError
+
+    def call(self, robot: str, request: Any, *, timeout_s: float | None = None) -> Any:
+        self.rounds[type(request).__name__] += 1
+        return self._result(robot, request, self._send(robot, request, timeout_s))
+
+    def call_all(self, requests: dict[str, Any], *, tolerate: bool = False) -> dict[str, Any]:
+        """The same moment's calls to several robots, sent together, answered in parallel. With
+        `tolerate`, a robot that does not answer gets its ControlError as its value instead of raising."""
+        for request in requests.values():
+            self.rounds[type(request).__name__] += 1
+            break
+        pending = {}
+        answers = {}
+        for robot, request in requests.items():
+            try:
+                pending[robot] = (request, self._send(robot, request, None))
+            except ControlError as error:
+                if not tolerate:
+                    raise
+                answers[robot] = error
+        for robot, (request, sent) in pending.items():
+            try:
+                answers[robot] = self._result(robot, request, sent)
+            except ControlError as error:
+                if not tolerate:
+                    raise
+                answers[robot] = error
+        return {robot: answers[robot] for robot in requests}
+
+    def _send(self, robot: str, request: Any, timeout_s: float | None):
+        self.calls += 1
+        self.requests[type(request).__name__] += 1
+        counter = next(self._counter)
+        self._put(robot, self.control_key.seal(_REQUEST, self.nonce, counter, robot, encode(request)))
+        return counter, self.timeout_s if timeout_s is None else timeout_s
+
+    def _result(self, robot: str, request: Any, sent) -> Any:
+        counter, timeout_s = sent
+        expected = msg.ANSWERS[type(request)]
+        deadline = time.monotonic() + timeout_s
+        refused = 0
+        while True:
+            try:
+                data = self._take(robot, max(0.0, deadline - time.monotonic()))
+            except queue.Empty:
+                if refused:
+                    raise ControlError(f"{robot} did not answer with the run's control key within {timeout_s:g} s "
+                                       f"({refused} repl{'y' if refused == 1 else 'ies'} refused)") from None
+                raise ControlError(f"{robot} did not answer within {timeout_s:g} s (its process is gone, or it "
+                                   f"does not hold the run's control key?)") from None
+            if data is None:
+                raise ControlError(f"{robot}'s process is gone ({self.gone_because})")
+            try:
+                direction, nonce, count, name, body = self.control_key.open(data)
+                if direction != _REPLY or nonce != self.nonce or count != counter or name != robot:
+                    raise ControlError(f"a reply that is not {robot}'s to call {counter} (replayed or late?)")
+                answer = decode(body)
+                if isinstance(answer, msg.ErrorReply):
+                    raise RemoteError(f"{robot}: {answer.message}\n--- in the robot process ---\n{answer.traceback}")
+                if type(answer) is not expected:
+                    raise ControlError(f"{type(answer).__name__} does not answer {type(request).__name__}")
+                return answer
+            except (ControlError, CodecError) as error:
+                refused += 1
+                self.refusals.refuse(f"reply for {robot}: {error}")
+
+    #: What ends a call when `_take` says the robot's process is gone.
+    gone_because = "its liveliness token went"
+
+
+class CallClient(Caller):
+    """The world's side over Zenoh: requests on each robot's request key, replies from their reply
+    keys; any reply beyond _MAX_WAITING queued for one robot (a flood) is dropped and counted."""
+
+    def __init__(self, session: zenoh.Session, keys: Keys, control_key: ControlKey, *,
+                 timeout_s: float = CALL_TIMEOUT_S) -> None:
+        super().__init__(control_key, timeout_s=timeout_s)
+        self.session, self.keys = session, keys
         self._inbox: dict[str, Handoff] = {}  # a Handoff: its timed wait ends on time after a signal
         self._publishers: dict[str, Any] = {}
         self._subscriber = session.declare_subscriber(keys.robots_reply, self._on_reply)
 
     def expect(self, robot: str) -> None:
-        """Robot `robot` (re)joins: forget what its previous process left (late replies, its leaving)."""
         self._inbox[robot] = Handoff()
 
     def gone(self, robot: str) -> None:
@@ -311,32 +409,7 @@ class CallClient:
         except ControlError as error:
             self.refusals.refuse(str(error))
 
-    def call(self, robot: str, request: Any, *, timeout_s: float | None = None) -> Any:
-        self.rounds[type(request).__name__] += 1
-        return self._result(robot, request, self._send(robot, request, timeout_s))
-
-    def call_all(self, requests: dict[str, Any], *, tolerate: bool = False) -> dict[str, Any]:
-        """The same moment's calls to several robots, sent together, answered in parallel. With
-        `tolerate`, a robot that does not answer gets its ControlError as its value instead of raising."""
-        for request in requests.values():
-            self.rounds[type(request).__name__] += 1
-            break
-        pending = {robot: (request, self._send(robot, request, None)) for robot, request in requests.items()}
-        answers = {}
-        for robot, (request, sent) in pending.items():
-            try:
-                answers[robot] = self._result(robot, request, sent)
-            except ControlError as error:
-                if not tolerate:
-                    raise
-                answers[robot] = error
-        return answers
-
-    def _send(self, robot: str, request: Any, timeout_s: float | None):
-        self.calls += 1
-        self.requests[type(request).__name__] += 1
-        counter = next(self._counter)
-        payload = self.control_key.seal(_REQUEST, self.nonce, counter, robot, encode(request))
+    def _put(self, robot: str, payload: bytes) -> None:
         if robot not in self._inbox:
             self.expect(robot)
         publisher = self._publishers.get(robot)
@@ -344,38 +417,9 @@ class CallClient:
             publisher = self._publishers[robot] = self.session.declare_publisher(self.keys.robot_request(robot),
                                                                                  **_PROMPT)
         publisher.put(payload)
-        return counter, self.timeout_s if timeout_s is None else timeout_s
 
-    def _result(self, robot: str, request: Any, sent) -> Any:
-        counter, timeout_s = sent
-        expected = msg.ANSWERS[type(request)]
-        inbox = self._inbox[robot]
-        deadline = time.monotonic() + timeout_s
-        refused = 0
-        while True:
-            try:
-                data = inbox.get(timeout=max(0.0, deadline - time.monotonic()))
-            except queue.Empty:
-                if refused:
-                    raise ControlError(f"{robot} did not answer with the run's control key within {timeout_s:g} s "
-                                       f"({refused} repl{'y' if refused == 1 else 'ies'} refused)") from None
-                raise ControlError(f"{robot} did not answer within {timeout_s:g} s (its process is gone, or it "
-                                   f"does not hold the run's control key?)") from None
-            if data is None:
-                raise ControlError(f"{robot}'s process is gone (its liveliness token went)")
-            try:
-                direction, nonce, count, name, body = self.control_key.open(data)
-                if direction != _REPLY or nonce != self.nonce or count != counter or name != robot:
-                    raise ControlError(f"a reply that is not {robot}'s to call {counter} (replayed or late?)")
-                answer = decode(body)
-                if isinstance(answer, msg.ErrorReply):
-                    raise RemoteError(f"{robot}: {answer.message}\n--- in the robot process ---\n{answer.traceback}")
-                if type(answer) is not expected:
-                    raise ControlError(f"{type(answer).__name__} does not answer {type(request).__name__}")
-                return answer
-            except (ControlError, CodecError) as error:
-                refused += 1
-                self.refusals.refuse(f"reply for {robot}: {error}")
+    def _take(self, robot: str, timeout_s: float) -> bytes | None:
+        return self._inbox[robot].get(timeout=timeout_s)
 
     def close(self) -> None:
         self._subscriber.undeclare()

@@ -1,5 +1,6 @@
 """The world as its own process: physics, sensors and the radio medium here, each robot in its own
-process, stepped in lockstep over Zenoh (runtime/processes/control.py).
+process, stepped in lockstep over the control plane (runtime/processes/control.py): Zenoh, or pipes to
+robot processes this world started (runtime/processes/pipes.py).
 
 Owns: the world's Zenoh host (its endpoint, liveliness token, the robots' tokens, the published
 clock, its control key) and ProcessRuntime: SimRuntime's loop with robots that are stand-ins
@@ -73,6 +74,8 @@ class WorldHost:
 
     def __init__(self, listen: str, run: str = "default", *, control_key: bytes = PUBLIC_CONTROL_KEY) -> None:
         self.listen, self.keys = listen, Keys(run)
+        self.join_hint = f"start each with: rescuemesh robot --name NAME --connect {listen}"
+        self.carrier = "zenoh"
         self.session = open_session(listen=[listen])
         self._events: list[tuple[str, bool]] = []
         self._lock = threading.Lock()
@@ -118,11 +121,13 @@ class WorldHost:
 
 class ProcessRuntime(SimRuntime):
     """SimRuntime with every robot in its own process. `rt.brains[name]` and `rt.stacks[name]` are
-    stand-ins that read from and call into the robot (runtime/processes/remote.py)."""
+    stand-ins that read from and call into the robot (runtime/processes/remote.py). `host` carries
+    the calls: a WorldHost (Zenoh: robots started anywhere) or a PipeHost (runtime/processes/pipes.py:
+    robots this world started)."""
 
     medium_class = LockstepMedium
 
-    def __init__(self, map_model: MapModel, starts: dict[str, Pose2D], config: SimConfig, host: WorldHost, *,
+    def __init__(self, map_model: MapModel, starts: dict[str, Pose2D], config: SimConfig, host, *,
                  key_from_seed: bool = True, join_timeout_s: float = JOIN_TIMEOUT_S) -> None:
         self.host, self.key_from_seed, self.join_timeout_s = host, key_from_seed, join_timeout_s
         self.starts = dict(starts)
@@ -153,7 +158,7 @@ class ProcessRuntime(SimRuntime):
             if left <= 0:
                 missing = ", ".join(f"{n} ({why[n]})" if n in why else n for n in waiting)
                 raise ControlError(f"robot processes did not join within {self.join_timeout_s:g} s: {missing} "
-                                   f"(start each with: rescuemesh robot --name NAME --connect {self.host.listen})")
+                                   f"({self.host.join_hint})")
             self.host.wait_for_any(waiting, min(left, 1.0))
             alive = self.host.alive()
             for name in [n for n in waiting if n in alive]:
@@ -328,7 +333,7 @@ class ProcessRuntime(SimRuntime):
         """The requests the world sent its robots, by type, and the rounds it waited for (one request,
         or one parallel round to several robots), over the whole run."""
         client = self.host.client
-        return {"requests": dict(sorted(client.requests.items())), "rounds": dict(sorted(client.rounds.items())),
+        return {"carrier": self.host.carrier, "requests": dict(sorted(client.requests.items())), "rounds": dict(sorted(client.rounds.items())),
                 "ticks": self.ticks}
 
     def close(self) -> None:

@@ -33,6 +33,7 @@ from rescuemesh.runtime.assembly import assemble_robot, team_sealer
 from rescuemesh.runtime.processes.control import (
     CONTROL_KEY_ENV,
     PUBLIC_CONTROL_KEY,
+    Answerer,
     CallServer,
     ControlError,
     ControlKey,
@@ -43,7 +44,8 @@ from rescuemesh.runtime.processes.control import (
 )
 from rescuemesh.runtime.processes.control_messages import BodyState, RobotSetup
 
-__all__ = ["BodyState", "IDLE_TIMEOUT_S", "RemoteBody", "RobotSetup", "RobotWorker", "StatusTracker", "serve_robot"]
+__all__ = ["BodyState", "IDLE_TIMEOUT_S", "RemoteBody", "RobotSetup", "RobotWorker", "StatusTracker", "serve_robot",
+           "serve_robot_over_pipes"]
 
 #: A robot that hears nothing from its world this long (s) halts and leaves.
 IDLE_TIMEOUT_S = 60.0
@@ -305,3 +307,60 @@ def serve_robot(name: str, connect: str, *, run: str = "default", team_key: byte
             token.undeclare()
         world.close()
         session.close()
+
+
+def serve_robot_over_pipes(name: str, requests_fd: int, replies_fd: int, *, team_key: bytes | None = None,
+                           idle_timeout_s: float = IDLE_TIMEOUT_S, out=sys.stdout) -> int:
+    """Run robot `name` for the world that started this process and handed it a pair of pipes
+    (runtime/processes/pipes.py): requests arrive on `requests_fd`, replies go to `replies_fd`. This
+    thread reads and answers each request in turn, until bye, the world's end of the pipe closing,
+    no request for `idle_timeout_s`, or a signal. Returns 0 (1 for a stream it cannot read)."""
+    from rescuemesh.runtime.processes.pipes import PipeReader, write_frame
+
+    control_key = control_key_for(team_key)
+    signal.signal(signal.SIGTERM, _terminate)
+    worker = RobotWorker(name, team_key)
+    answerer = Answerer(name, control_key, worker.handle)
+    requests = PipeReader(requests_fd)
+    status = 0
+    print(f"{name}: joined the world (its control plane: pipes from process {os.getppid()})", file=out, flush=True)
+    try:
+        while True:
+            try:
+                request = requests.next(idle_timeout_s)
+            except queue.Empty:
+                why = f"no call from the world in {idle_timeout_s:g} s"
+                break
+            except ControlError as error:
+                why, status = f"the world's pipe is unreadable: {error}", 1
+                break
+            if request is None:
+                why = "world gone"
+                break
+            reply = answerer.answer(request)
+            if reply is not None:
+                try:
+                    write_frame(replies_fd, reply)
+                except OSError:
+                    why = "world gone"
+                    break
+            if worker.done:
+                why = None
+                break
+        if why is None:
+            print(f"{name}: the world's run is over: wheels halted, leaving", file=out, flush=True)
+        else:
+            print(f"{name}: {why}: wheels halted, leaving", file=out, flush=True)
+        if answerer.refusals.count:
+            print(f"{name}: {answerer.refusals.count} control messages refused", file=out, flush=True)
+        return status
+    except KeyboardInterrupt:
+        print(f"{name}: interrupted: wheels halted, leaving", file=out, flush=True)
+        return 0
+    finally:
+        worker.halt()
+        requests.close()
+        try:
+            os.close(replies_fd)
+        except OSError:
+            pass
