@@ -25,8 +25,10 @@ from rescuemesh.runtime.processes.control import Answerer, ControlError, Control
 from rescuemesh.runtime.processes.control_codec import encode
 from rescuemesh.runtime.processes.pipes import (
     MAX_FRAME_BYTES,
+    READY,
     PipeCaller,
     PipeChannel,
+    PipeHost,
     PipeReader,
     write_frame,
 )
@@ -174,6 +176,32 @@ def test_a_forged_reply_on_the_pipe_is_refused_and_counted_and_the_call_times_ou
         robot.thread.join(5.0)
 
 
+def test_the_host_joins_a_robot_once_it_says_ready_and_never_one_that_says_something_else():
+    channels = {}
+    for name in ("robot_1", "robot_2"):
+        requests_in, requests_out = os.pipe()
+        replies_in, replies_out = os.pipe()
+        channels[name] = (PipeChannel(requests_out, PipeReader(replies_in)), requests_in, replies_out)
+    host = PipeHost({name: c[0] for name, c in channels.items()}, bytes(32))
+    try:
+        assert host.take_events() == [] and host.alive() == set()  # both still "importing"
+        assert not host.wait_for_any(["robot_1", "robot_2"], 0.1)
+        write_frame(channels["robot_1"][2], READY)
+        write_frame(channels["robot_2"][2], b"x" * 40)  # not READY: a broken robot
+        assert host.wait_for_any(["robot_1"], 5.0)
+        assert host.take_events() == [("robot_1", True)] and host.take_events() == []
+        assert host.alive() == {"robot_1"}
+        assert "not READY" in channels["robot_2"][0].broken
+        os.close(channels["robot_1"][2])  # robot_1's process is gone
+        assert host.alive() == set()
+    finally:
+        for channel, requests_in, replies_out in channels.values():
+            channel.close()
+            os.close(requests_in)
+            if channel is channels["robot_2"][0]:
+                os.close(replies_out)
+
+
 class _Lines:
     def __init__(self):
         self.lines = []
@@ -226,6 +254,7 @@ def test_a_robots_loop_refuses_a_forged_request_answers_a_genuine_one_and_leaves
     out = _Lines()
     assert robot_pipes.serve(out) == 0
     replies = robot_pipes.replies
+    assert replies.next(5.0) == READY  # first, before any request was read
     assert KEY.open(replies.next(5.0))[2] == 2  # the genuine one's answer, and only that one
     assert replies.next(5.0) is None  # the robot closed its end
     assert "world gone: wheels halted, leaving" in out.text()

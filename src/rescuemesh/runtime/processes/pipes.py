@@ -39,12 +39,16 @@ from rescuemesh.runtime.processes.control import (
 )
 from rescuemesh.runtime.processes.control_codec import MAX_MESSAGE_BYTES
 
-__all__ = ["MAX_FRAME_BYTES", "PipeCaller", "PipeChannel", "PipeHost", "PipeReader", "write_frame"]
+__all__ = ["MAX_FRAME_BYTES", "READY", "PipeCaller", "PipeChannel", "PipeHost", "PipeReader", "write_frame"]
 
 _LENGTH = struct.Struct(">I")
 #: The longest sealed message a pipe carries: the codec's limit, the seal and the longest robot name.
 MAX_FRAME_BYTES = MAX_MESSAGE_BYTES + _TAG_BYTES + _HEADER.size + 255
 _READ_BYTES = 1 << 20
+#: A robot process's first message on its reply pipe, once it has imported and can answer (what its
+#: liveliness token says over Zenoh): until then the world does not call it, so a robot that takes
+#: long to start costs the world no wait.
+READY = b"rescuemesh robot ready"
 
 
 def write_frame(fd: int, message: bytes) -> None:
@@ -94,6 +98,12 @@ class PipeReader:
                 if self._buffer:
                     self._buffer.clear()  # a message cut off by the writer's end is no message
 
+    def hung_up(self) -> bool:
+        """Whether the writer has closed its end (looks without reading or waiting)."""
+        if self.ended:
+            return True
+        return any(events & select.POLLHUP for _, events in self._poll.poll(0))
+
     def _message(self) -> bytes | None:
         buffer = self._buffer
         if len(buffer) < _LENGTH.size:
@@ -124,9 +134,28 @@ class PipeChannel:
     to_robot: int
     from_robot: PipeReader
     process: Any = None
+    ready: bool = False  # the robot said READY
+    broken: str | None = None  # why this channel is useless (its first message was not READY)
+
+    def check_ready(self) -> bool:
+        """Whether the robot has said READY (looks without waiting)."""
+        if not self.ready and self.broken is None and not self.from_robot.ended:
+            try:
+                first = self.from_robot.next(0.0)
+            except queue.Empty:
+                return False
+            except ControlError as error:
+                self.broken = str(error)
+                return False
+            if first == READY:
+                self.ready = True
+            elif first is not None:
+                self.broken = f"its first message was {len(first)} bytes, not READY"
+        return self.ready
 
     def alive(self) -> bool:
-        return not self.from_robot.ended and (self.process is None or self.process.poll() is None)
+        return (self.check_ready() and not self.from_robot.hung_up()
+                and (self.process is None or self.process.poll() is None))
 
     def close(self) -> None:
         """Close the world's ends (once each)."""
@@ -175,8 +204,9 @@ class PipeCaller(Caller):
 
 class PipeHost:
     """WorldHost's interface for robots started by this world and spoken to over pipes: the joins
-    are the channels the starter opened (a robot started again joins again); a robot is lost when its
-    pipe closes. No Zenoh session: no liveliness tokens and no published clock."""
+    are the channels the starter opened, once their robot said READY (a robot started again joins
+    again); a robot is lost when its pipe closes. No Zenoh session: no liveliness tokens and no
+    published clock."""
 
     def __init__(self, channels: Mapping[str, PipeChannel], control_key: bytes, *, log_dir=None) -> None:
         self.channels = channels
@@ -186,10 +216,11 @@ class PipeHost:
         self._seen: dict[str, PipeChannel] = {}
 
     def take_events(self) -> list[tuple[str, bool]]:
-        """Robots whose process was started (again) since the last call: (name, True) each."""
+        """Robots whose process was started (again) and has said READY since the last call: (name,
+        True) each. A process still importing is looked at again at the next call."""
         events = []
         for name, channel in list(self.channels.items()):
-            if self._seen.get(name) is not channel:
+            if self._seen.get(name) is not channel and channel.check_ready():
                 self._seen[name] = channel
                 events.append((name, True))
         return events

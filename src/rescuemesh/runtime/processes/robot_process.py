@@ -315,7 +315,7 @@ def serve_robot_over_pipes(name: str, requests_fd: int, replies_fd: int, *, team
     (runtime/processes/pipes.py): requests arrive on `requests_fd`, replies go to `replies_fd`. This
     thread reads and answers each request in turn, until bye, the world's end of the pipe closing,
     no request for `idle_timeout_s`, or a signal. Returns 0 (1 for a stream it cannot read)."""
-    from rescuemesh.runtime.processes.pipes import PipeReader, write_frame
+    from rescuemesh.runtime.processes.pipes import READY, PipeReader, write_frame
 
     control_key = control_key_for(team_key)
     signal.signal(signal.SIGTERM, _terminate)
@@ -323,6 +323,13 @@ def serve_robot_over_pipes(name: str, requests_fd: int, replies_fd: int, *, team
     answerer = Answerer(name, control_key, worker.handle)
     requests = PipeReader(requests_fd)
     status = 0
+    try:
+        write_frame(replies_fd, READY)  # imported and listening: the world may call now
+    except OSError:
+        requests.close()
+        os.close(replies_fd)
+        print(f"{name}: world gone before this robot was ready: leaving", file=out, flush=True)
+        return 0
     print(f"{name}: joined the world (its control plane: pipes from process {os.getppid()})", file=out, flush=True)
     try:
         while True:
