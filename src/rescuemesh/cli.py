@@ -162,7 +162,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--quiet", action="store_true", help="no progress display")
     run.add_argument("--processes", action="store_true",
                      help="each robot in its own process, the world in this one (docs/processes.md)")
-    run.add_argument("--control", choices=["pipes", "zenoh"], default="pipes",
+    run.add_argument("--control", choices=["pipes", "zenoh"], default=None,
                      help="with --processes: the world calls its robot processes over a pair of pipes each "
                           "(default, the fastest) or over Zenoh on loopback")
     run.add_argument("--realtime", action="store_true", help="pace the run to the wall clock (default: as fast as it goes)")
@@ -331,6 +331,10 @@ def _run(args) -> int:
                               team_key=key, key_source=key_source)
     name = args.scenario
     processes, scenario = None, None
+    if args.control is not None and not (args.processes and args.command == "run"):
+        raise UsageError("--control chooses how run --processes calls its robots"
+                         + ("; robots started by hand call the world over Zenoh" if args.command == "world" else
+                            ": add --processes"))
     if name.endswith((".yaml", ".yml")):  # a mission file (docs/missions.md)
         from rescuemesh.cli_experiments import mission_scenario
         from rescuemesh.experiments import SweepError
@@ -402,7 +406,7 @@ def _early_team(args, options, out: Path):
         names = list(scenario.starts()) if cls.runs_as_processes else []
     except (ScenarioError, MapError, ValueError) as error:
         raise UsageError(str(error)) from None
-    control = ControlCarrier(args.control)
+    control = ControlCarrier(args.control or ControlCarrier.PIPES.value)
     listen = free_endpoint() if control is ControlCarrier.ZENOH else None
     team = RobotProcesses(listen, "default", out / "processes", key_file=args.key, control=control)
     for name in names:

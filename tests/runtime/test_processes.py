@@ -40,19 +40,21 @@ def _result(folder: Path) -> dict:
     return result
 
 
-@pytest.mark.parametrize("scenario, args", [("follow", []), ("stop", ["--loss", "0.2", "--seed", "3"]),
-                                            ("move-around", ["--loss", "0.2", "--seed", "2"]),
-                                            ("follow", ["--control", "zenoh"])])
-def test_a_run_in_processes_is_the_same_run_as_in_one_process(tmp_path, scenario, args):
+@pytest.mark.parametrize("scenario, args, control", [("follow", [], "pipes"),
+                                                     ("stop", ["--loss", "0.2", "--seed", "3"], "pipes"),
+                                                     ("move-around", ["--loss", "0.2", "--seed", "2"], "pipes"),
+                                                     ("follow", [], "zenoh")])
+def test_a_run_in_processes_is_the_same_run_as_in_one_process(tmp_path, scenario, args, control):
     one = subprocess.run(RESCUEMESH + ["run", scenario, "--quiet", "--out", str(tmp_path / "one")] + args,
                          capture_output=True, text=True, timeout=120)
-    many = subprocess.run(RESCUEMESH + ["run", scenario, "--quiet", "--processes", "--out", str(tmp_path / "many")]
-                          + args, capture_output=True, text=True, timeout=120)
+    many = subprocess.run(RESCUEMESH + ["run", scenario, "--quiet", "--processes", "--control", control,
+                                        "--out", str(tmp_path / "many")] + args,
+                          capture_output=True, text=True, timeout=120)
     assert one.returncode == many.returncode == 0, many.stderr
     assert _result(tmp_path / "many") == _result(tmp_path / "one")
     runtime = json.loads((tmp_path / "many" / "result.json").read_text())["runtime"]
     assert runtime["kind"] == "processes"
-    assert runtime["control_plane"]["carrier"] == ("zenoh" if "zenoh" in args else "pipes")
+    assert runtime["control_plane"]["carrier"] == control
     names = [p["name"] for p in runtime["processes"]]
     assert names == ["world", "robot_1", "robot_2", "robot_3"]
     assert len({p["pid"] for p in runtime["processes"]}) == 4 and all(p["cpu_s"] > 0 for p in runtime["processes"])
@@ -87,6 +89,9 @@ def test_a_bad_run_id_is_refused(bad):
     (["robot", "--link", "udp", "--name", "robot_2"], "--link takes zenoh"),
     (["robot", "--link", "zenoh", "--name", "robot_2"], "give at least one --listen or --connect"),
     (["world", "follow", "--run-id", "a/b"], "run id"),
+    (["run", "follow", "--control", "zenoh"], "--control chooses how run --processes calls its robots: add"),
+    (["world", "follow", "--control", "pipes"], "robots started by hand call the world over Zenoh"),
+    (["run", "follow", "--processes", "--control", "udp"], "invalid choice"),
 ])
 def test_bad_process_arguments_are_one_line_errors(argv, message):
     done = subprocess.run(RESCUEMESH + argv, capture_output=True, text=True, timeout=60)
