@@ -82,11 +82,18 @@ class LossyLink:
         self.namespaces: list[str] = []
         self.bridge: subprocess.Popen | None = None
         self.how = ""
+        self.thin = False  # linear timeouts for thin TCP streams in both robots' namespaces
 
     def open(self) -> None:
         for ns in (self.a, self.b):
             _ip("netns", "add", ns)
             self.namespaces.append(ns)
+        # A robot's Zenoh stream is thin (a frame or two in flight): Linux then retries a lost segment
+        # at a steady RTO for its first 6 tries instead of doubling it, so a run of losses stalls the
+        # link for about a second, not 6-13 s (docs/networks.md, "Lossy links"). Per namespace.
+        self.thin = all(subprocess.run(["ip", "netns", "exec", ns, "sysctl", "-qw",
+                                        "net.ipv4.tcp_thin_linear_timeouts=1"],
+                                       capture_output=True, timeout=20).returncode == 0 for ns in (self.a, self.b))
         va, vb = f"{self.tag}va", f"{self.tag}vb"
         _ip("link", "add", va, "netns", self.a, "type", "veth", "peer", "name", vb, "netns", self.b)
         self._address(self.a, va, 1)
@@ -189,7 +196,8 @@ def test_follow_completes_between_two_network_namespaces_with_20_percent_loss(tm
     logs = {name: (tmp_path / f"{name}.log").read_text() for name in ("robot_1", "robot_2")}
     assert leader.returncode == 0 and follower.returncode == 0, logs
     one, two = json.loads(leader_json.read_text()), json.loads(follower_json.read_text())
-    print(f"\nnetns Follow: {link.how}; {time.monotonic() - started:.1f} s; {counts}; "
+    print(f"\nnetns Follow: {link.how}; thin-stream linear timeouts {'on' if link.thin else 'unavailable'}; "
+          f"{time.monotonic() - started:.1f} s; {counts}; "
           f"robot_1 {one['mission']}; robot_2 drove {two['path_length_m']} m")
     assert one["mission"]["follow_result"] == "ACCEPTED" and one["mission"]["goal_result"] == "DONE"
     # FAILED "link lost" here has meant a TCP stall longer than the link-loss rule's silence and
