@@ -9,6 +9,7 @@ Every wait is bounded.
 
 from __future__ import annotations
 
+import io
 import os
 import queue
 import signal
@@ -21,10 +22,9 @@ import time
 import pytest
 
 from rescuemesh.runtime.processes import control_messages as msg
-from rescuemesh.runtime.processes.control import Answerer, ControlError, ControlKey
+from rescuemesh.runtime.processes.control import MAX_SEALED_BYTES, Answerer, ControlError, ControlKey
 from rescuemesh.runtime.processes.control_codec import encode
 from rescuemesh.runtime.processes.pipes import (
-    MAX_FRAME_BYTES,
     READY,
     PipeCaller,
     PipeChannel,
@@ -103,7 +103,7 @@ def test_a_length_over_the_limit_is_refused_without_reading_on(pipe):
     with pytest.raises(ControlError, match="over the .* byte limit"):
         reader.next(1.0)
     with pytest.raises(ControlError, match="over the control message limit"):
-        write_frame(write_end, b"x" * (MAX_FRAME_BYTES + 1))
+        write_frame(write_end, b"x" * (MAX_SEALED_BYTES + 1))
 
 
 class _Robot:
@@ -202,20 +202,6 @@ def test_the_host_joins_a_robot_once_it_says_ready_and_never_one_that_says_somet
                 os.close(replies_out)
 
 
-class _Lines:
-    def __init__(self):
-        self.lines = []
-
-    def write(self, text):
-        self.lines.append(text)
-
-    def flush(self):
-        pass
-
-    def text(self):
-        return "".join(self.lines)
-
-
 class _RobotPipes:
     """A robot loop's pipes: the loop owns (and closes) requests_in and replies_out; the world's end
     of the requests is closed once, by the test or at teardown."""
@@ -251,23 +237,23 @@ def test_a_robots_loop_refuses_a_forged_request_answers_a_genuine_one_and_leaves
     write_frame(robot_pipes.requests_out, OTHER_KEY.seal(1, b"w" * 16, 1, "robot_1", encode(msg.Hello())))  # forged
     write_frame(robot_pipes.requests_out, KEY.seal(1, b"w" * 16, 2, "robot_1", encode(msg.Hello())))
     robot_pipes.close_world()  # then the world is gone
-    out = _Lines()
+    out = io.StringIO()
     assert robot_pipes.serve(out) == 0
     replies = robot_pipes.replies
     assert replies.next(5.0) == READY  # first, before any request was read
     assert KEY.open(replies.next(5.0))[2] == 2  # the genuine one's answer, and only that one
     assert replies.next(5.0) is None  # the robot closed its end
-    assert "world gone: wheels halted, leaving" in out.text()
-    assert "1 control messages refused" in out.text()
+    assert "world gone: wheels halted, leaving" in out.getvalue()
+    assert "1 control messages refused" in out.getvalue()
 
 
 def test_a_robots_loop_leaves_on_a_garbage_length_without_reading_it(robot_pipes):
     os.write(robot_pipes.requests_out, struct.pack(">I", 0x7FFF_FFFF))  # "a 2 GB message follows"; left open
-    out = _Lines()
+    out = io.StringIO()
     start = time.monotonic()
     assert robot_pipes.serve(out) == 1
     assert time.monotonic() - start < 5.0
-    assert "the world's pipe is unreadable" in out.text()
+    assert "the world's pipe is unreadable" in out.getvalue()
 
 
 @pytest.mark.parametrize("argv, message", [

@@ -40,7 +40,8 @@ from rescuemesh.runtime.processes.control_codec import MAX_MESSAGE_BYTES, CodecE
 from rescuemesh.transport.handoff import Handoff
 from rescuemesh.transport.zenoh_link import check_endpoint, session_config
 
-__all__ = ["CALL_TIMEOUT_S", "Answerer", "CallClient", "CallServer", "Caller", "ControlError", "ControlKey", "Keys", "Liveliness",
+__all__ = ["CALL_TIMEOUT_S", "MAX_SEALED_BYTES", "Answerer", "CallClient", "CallServer", "Caller", "ControlError",
+           "ControlKey", "Keys", "Liveliness",
            "PUBLIC_CONTROL_KEY", "RemoteError", "check_endpoint", "control_key_from_team_key", "open_session"]
 
 log = logging.getLogger("rescuemesh.control")
@@ -185,11 +186,15 @@ def open_session(*, listen: list[str] = (), connect: list[str] = ()) -> zenoh.Se
                            f"{str(error).splitlines()[0]}") from None
 
 
+#: The longest sealed message either carrier takes: the codec's limit, the seal and the longest name.
+MAX_SEALED_BYTES = MAX_MESSAGE_BYTES + _TAG_BYTES + _HEADER.size + 255
+
+
 def _payload(carrier) -> bytes:
     payload = carrier.payload
     if payload is None:
         return b""
-    if len(payload) > MAX_MESSAGE_BYTES + _TAG_BYTES + _HEADER.size + 255:
+    if len(payload) > MAX_SEALED_BYTES:
         raise ControlError(f"{len(payload)} bytes: over the control message limit")
     return payload.to_bytes()
 
@@ -372,13 +377,15 @@ class Caller:
                 refused += 1
                 self.refusals.refuse(f"reply for {robot}: {error}")
 
-    #: What ends a call when `_take` says the robot's process is gone.
-    gone_because = "its liveliness token went"
+    #: What ends a call when `_take` says the robot's process is gone (each carrier says its own).
+    gone_because = "its carrier says so"
 
 
 class CallClient(Caller):
     """The world's side over Zenoh: requests on each robot's request key, replies from their reply
     keys; any reply beyond _MAX_WAITING queued for one robot (a flood) is dropped and counted."""
+
+    gone_because = "its liveliness token went"
 
     def __init__(self, session: zenoh.Session, keys: Keys, control_key: ControlKey, *,
                  timeout_s: float = CALL_TIMEOUT_S) -> None:

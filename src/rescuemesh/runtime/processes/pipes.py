@@ -29,21 +29,12 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from rescuemesh.runtime.processes.control import (
-    CALL_TIMEOUT_S,
-    Caller,
-    ControlError,
-    ControlKey,
-    _HEADER,
-    _TAG_BYTES,
-)
-from rescuemesh.runtime.processes.control_codec import MAX_MESSAGE_BYTES
+from rescuemesh.runtime.processes.control import CALL_TIMEOUT_S, MAX_SEALED_BYTES, Caller, ControlError, ControlKey
+from rescuemesh.runtime.processes.spawn import ControlCarrier
 
-__all__ = ["MAX_FRAME_BYTES", "READY", "PipeCaller", "PipeChannel", "PipeHost", "PipeReader", "write_frame"]
+__all__ = ["READY", "PipeCaller", "PipeChannel", "PipeHost", "PipeReader", "write_frame"]
 
 _LENGTH = struct.Struct(">I")
-#: The longest sealed message a pipe carries: the codec's limit, the seal and the longest robot name.
-MAX_FRAME_BYTES = MAX_MESSAGE_BYTES + _TAG_BYTES + _HEADER.size + 255
 _READ_BYTES = 1 << 20
 #: A robot process's first message on its reply pipe, once it has imported and can answer (what its
 #: liveliness token says over Zenoh): until then the world does not call it, so a robot that takes
@@ -54,7 +45,7 @@ READY = b"rescuemesh robot ready"
 def write_frame(fd: int, message: bytes) -> None:
     """Write one message to `fd` whole (a blocking pipe may take a long one in parts). BrokenPipeError
     (an OSError) when the other end is closed."""
-    if len(message) > MAX_FRAME_BYTES:
+    if len(message) > MAX_SEALED_BYTES:
         raise ControlError(f"{len(message)} bytes: over the control message limit")
     view = memoryview(_LENGTH.pack(len(message)) + message)
     while view:
@@ -64,7 +55,7 @@ def write_frame(fd: int, message: bytes) -> None:
 class PipeReader:
     """The messages arriving on one pipe, each whole, oldest first."""
 
-    def __init__(self, fd: int, limit: int = MAX_FRAME_BYTES) -> None:
+    def __init__(self, fd: int, limit: int = MAX_SEALED_BYTES) -> None:
         self.fd, self.limit = fd, limit
         self.ended = False  # the writer closed its end (its process is gone) and all was read
         self._buffer = bytearray()
@@ -211,7 +202,7 @@ class PipeHost:
     def __init__(self, channels: Mapping[str, PipeChannel], control_key: bytes, *, log_dir=None) -> None:
         self.channels = channels
         self.client = PipeCaller(channels, ControlKey(control_key))
-        self.carrier = "pipes"
+        self.carrier = ControlCarrier.PIPES
         self.join_hint = f"their output is in {log_dir}" if log_dir is not None else "they were started by this world"
         self._seen: dict[str, PipeChannel] = {}
 

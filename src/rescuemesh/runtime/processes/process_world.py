@@ -46,6 +46,7 @@ from rescuemesh.runtime.processes.control import (
 )
 from rescuemesh.runtime.processes.control_messages import BodyState, RobotSetup
 from rescuemesh.runtime.processes.lockstep_medium import LockstepMedium
+from rescuemesh.runtime.processes.spawn import ControlCarrier
 from rescuemesh.runtime.processes.remote import RemoteBrain, RemoteStack, RobotGone
 from rescuemesh.runtime.inprocess.sim_loop import SimRuntime, _position_of
 
@@ -75,7 +76,7 @@ class WorldHost:
     def __init__(self, listen: str, run: str = "default", *, control_key: bytes = PUBLIC_CONTROL_KEY) -> None:
         self.listen, self.keys = listen, Keys(run)
         self.join_hint = f"start each with: rescuemesh robot --name NAME --connect {listen}"
-        self.carrier = "zenoh"
+        self.carrier = ControlCarrier.ZENOH
         self.session = open_session(listen=[listen])
         self._events: list[tuple[str, bool]] = []
         self._lock = threading.Lock()
@@ -333,7 +334,7 @@ class ProcessRuntime(SimRuntime):
         """The requests the world sent its robots, by type, and the rounds it waited for (one request,
         or one parallel round to several robots), over the whole run."""
         client = self.host.client
-        return {"carrier": self.host.carrier, "requests": dict(sorted(client.requests.items())), "rounds": dict(sorted(client.rounds.items())),
+        return {"carrier": self.host.carrier.value, "requests": dict(sorted(client.requests.items())), "rounds": dict(sorted(client.rounds.items())),
                 "ticks": self.ticks}
 
     def close(self) -> None:

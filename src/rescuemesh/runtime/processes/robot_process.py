@@ -238,6 +238,14 @@ def _terminate(signum, frame):
     raise SystemExit(0)
 
 
+def _say_leaving(name: str, why: str | None, refused: int, out) -> None:
+    """A robot's last lines: why it leaves (None: the world said bye) and what it refused."""
+    why = "the world's run is over" if why is None else why
+    print(f"{name}: {why}: wheels halted, leaving", file=out, flush=True)
+    if refused:
+        print(f"{name}: {refused} control messages refused", file=out, flush=True)
+
+
 def control_key_for(team_key: bytes | None) -> ControlKey:
     """The control key a robot process proves itself with: from its team key file; else the one its
     parent put in the environment (`run --processes`: a fresh key per run); else the public one."""
@@ -289,13 +297,8 @@ def serve_robot(name: str, connect: str, *, run: str = "default", team_key: byte
                 if time.monotonic() - quiet_since < idle_timeout_s:
                     continue
                 item = f"no call from the world in {idle_timeout_s:g} s"
-            if item == "bye":
-                print(f"{name}: the world's run is over: wheels halted, leaving", file=out, flush=True)
-            else:
-                print(f"{name}: {item}: wheels halted, leaving", file=out, flush=True)
+            _say_leaving(name, None if item == "bye" else item, server.refusals.count, out)
             break
-        if server.refusals.count:
-            print(f"{name}: {server.refusals.count} control messages refused", file=out, flush=True)
         return 0
     except KeyboardInterrupt:
         print(f"{name}: interrupted: wheels halted, leaving", file=out, flush=True)
@@ -354,12 +357,7 @@ def serve_robot_over_pipes(name: str, requests_fd: int, replies_fd: int, *, team
             if worker.done:
                 why = None
                 break
-        if why is None:
-            print(f"{name}: the world's run is over: wheels halted, leaving", file=out, flush=True)
-        else:
-            print(f"{name}: {why}: wheels halted, leaving", file=out, flush=True)
-        if answerer.refusals.count:
-            print(f"{name}: {answerer.refusals.count} control messages refused", file=out, flush=True)
+        _say_leaving(name, why, answerer.refusals.count, out)
         return status
     except KeyboardInterrupt:
         print(f"{name}: interrupted: wheels halted, leaving", file=out, flush=True)
