@@ -62,12 +62,35 @@ def test_only_registered_types_decode_and_each_checks_its_fields():
     # a field of the wrong type is refused before the class is built
     import msgpack
 
+    def record(name, *fields):  # the wire form: an array that opens with the class's tag
+        return [msgpack.ExtType(5, name.encode()), *fields]
+
     with pytest.raises(CodecError, match="Tick.now"):
-        decode(msgpack.packb(msgpack.ExtType(2, msgpack.packb(["Tick", ["one", None]]))))
+        decode(msgpack.packb(record("Tick", "one", None)))
     with pytest.raises(CodecError, match="Tick.body"):
-        decode(msgpack.packb(msgpack.ExtType(2, msgpack.packb(["Tick", [1.0, None]]))))
+        decode(msgpack.packb(record("Tick", 1.0, None)))
+    with pytest.raises(CodecError, match="takes 2 fields"):
+        decode(msgpack.packb(record("Tick", 1.0)))
     with pytest.raises(CodecError, match="unknown record type"):
-        decode(msgpack.packb(msgpack.ExtType(2, msgpack.packb(["Popen", [["touch", "x"]]]))))
+        decode(msgpack.packb(record("Popen", ["touch", "x"])))
+    with pytest.raises(CodecError, match="unknown extension type 2"):  # version 1's record: no longer read
+        decode(msgpack.packb(msgpack.ExtType(2, msgpack.packb(["Stats", []]))))
+
+
+def test_a_tag_anywhere_but_at_the_head_of_an_array_is_refused():
+    import msgpack
+
+    stats, pair = msgpack.ExtType(5, b"Stats"), msgpack.ExtType(6, b"")
+    assert decode(msgpack.packb([stats])) == msg.Stats()
+    assert decode(msgpack.packb([pair, 1, "a"])) == (1, "a")
+    assert decode(msgpack.packb([[pair], [stats]])) == [(), msg.Stats()]
+    # two IntEnum members with the same value are equal in Python; each keeps its own type
+    from rescuemesh.protocol.messages import Reason, ResultCode
+
+    assert [type(v) for v in decode(encode([ResultCode(0), Reason(0), ResultCode(0)]))] == [ResultCode, Reason, ResultCode]
+    for hostile in (stats, [1, stats], {"a": stats}, {"a": [0, pair]}, [[0, stats]], msgpack.ExtType(6, b"x")):
+        with pytest.raises(CodecError):
+            decode(msgpack.packb(hostile))
 
 
 def test_an_array_is_refused_unless_its_dtype_shape_and_bytes_agree():
@@ -290,3 +313,15 @@ def test_a_flood_on_a_robots_reply_key_is_bounded_and_counted():
     with pytest.raises(ControlError, match="did not answer with the run's control key"):
         client._result("robot_1", msg.Hello(), sent)
     assert client.refusals.count == 1000
+
+
+def test_a_message_of_another_control_plane_version_is_refused_by_name():
+    # version 2 changed the body (records as tagged arrays): a version-1 peer is told so, not misread
+    import hmac
+    import struct
+
+    signed = struct.pack(">BB16sQB", 1, REQUEST, b"w" * 16, 1, 7) + b"robot_1" + encode(msg.Stats())
+    sealed = hmac.digest(bytes(range(32)), signed, "sha256")[:16] + signed
+    with pytest.raises(ControlError, match="version 1, expected 2"):
+        KEY.open(sealed)
+    assert KEY.open(KEY.seal(REQUEST, b"w" * 16, 1, "robot_1", encode(msg.Stats())))[3] == "robot_1"

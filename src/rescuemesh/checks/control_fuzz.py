@@ -85,7 +85,9 @@ def corpus() -> list[bytes]:
     hostile = [
         pickle_call("rescuemesh.cli", "os.system", "touch /tmp/rescuemesh-pwned"),
         pickle_call("rescuemesh.runtime.processes.spawn", "subprocess.Popen", "true"),
-        msgpack.packb(msgpack.ExtType(2, msgpack.packb(["Popen", ["true"]]))),
+        msgpack.packb([msgpack.ExtType(5, b"Popen"), ["true"]]),
+        msgpack.packb({"stray": msgpack.ExtType(5, b"Stats")}),
+        msgpack.packb([0, msgpack.ExtType(5, b"Bye")]),
         msgpack.packb(msgpack.ExtType(1, msgpack.packb(["|O", [1], b"\x00" * 8]))),
         msgpack.packb(msgpack.ExtType(1, msgpack.packb(["<f8", [1 << 40, 1 << 40], b""]))),
         msgpack.packb(msgpack.ExtType(3, msgpack.packb(["ResultCode", 99]))),

@@ -53,7 +53,9 @@ CONTROL_KEY_SALT, CONTROL_KEY_INFO = b"rescuemesh v1", b"process control plane a
 #: The environment variable a spawned robot process reads its run's control key from (hex).
 CONTROL_KEY_ENV = "RESCUEMESH_CONTROL_KEY"
 
-_VERSION = 1
+#: The sealed message's version: 2 since records and tuples are tagged arrays in the body
+#: (runtime/processes/control_codec.py); a world and a robot of different versions refuse each other.
+_VERSION = 2
 _TAG_BYTES = 16
 _HEADER = struct.Struct(">BB16sQB")  # version, direction, run nonce, counter, length of the robot's name
 _REQUEST, _REPLY = 1, 2

@@ -32,8 +32,10 @@ MAX_ARRAY_DIMS = 3
 #: Array dtypes that may cross (numpy's `dtype.str`): numbers and booleans, nothing with objects.
 ARRAY_DTYPES = frozenset({"|b1", "|u1", "|i1", "<u2", "<i2", "<u4", "<i4", "<u8", "<i8", "<f4", "<f8"})
 
-# msgpack extension type codes
-_EXT_ARRAY, _EXT_RECORD, _EXT_ENUM, _EXT_TUPLE = 1, 2, 3, 4
+# msgpack extension type codes. A record is a msgpack array whose first item is its class's tag (an
+# extension holding the class name), then its fields; a tuple is an array that opens with the tuple
+# tag. So a whole message packs and unpacks in one msgpack call, nested records included.
+_EXT_ARRAY, _EXT_ENUM, _EXT_RECORD_TAG, _EXT_TUPLE_TAG = 1, 3, 5, 6
 
 
 class CodecError(ValueError):
@@ -69,8 +71,29 @@ def _registry() -> tuple[dict[str, type], dict[str, type]]:
 
 _RECORDS: dict[str, type] = {}
 _ENUMS: dict[str, type] = {}
-_FIELDS: dict[type, tuple[tuple[str, typing.Callable], ...]] = {}  # class -> ((field, its check), ...)
+#: class -> ((field, the types that pass its check as they are, its check), ...): most decoded values
+#: are of a type that passes outright (a float field's float), the others go through the check
+_FIELDS: dict[type, tuple[tuple[str, frozenset, typing.Callable], ...]] = {}
 _NAMES: dict[type, tuple[str, ...]] = {}  # a registered class -> its fields' names, in order
+_TAG_OF: dict[type, msgpack.ExtType] = {}  # a registered class -> the extension that opens its array
+#: (enum class, member) -> its extension, once made (by class too: IntEnum members of two enums with
+#: the same value are equal, and hash alike)
+_ENUM_EXT: dict[tuple[type, enum.Enum], msgpack.ExtType] = {}
+_TUPLE_EXT = msgpack.ExtType(_EXT_TUPLE_TAG, b"")
+
+
+class _Tag:
+    """What a record's or a tuple's opening extension decodes to, until its array is complete."""
+
+    __slots__ = ("cls",)
+
+    def __init__(self, cls: type | None) -> None:
+        self.cls = cls  # None: a tuple
+
+
+_TAGS: dict[bytes, _Tag] = {}  # a registered class's name (UTF-8) -> its tag
+_TUPLE = _Tag(None)
+_ENUM_VALUES: dict[bytes, enum.Enum] = {}  # an enum extension's bytes -> the member, once decoded
 
 
 def _load() -> None:
@@ -79,8 +102,11 @@ def _load() -> None:
     records, enums = _registry()
     for name, cls in records.items():
         hints = typing.get_type_hints(cls)
-        _FIELDS[cls] = tuple((f.name, _checker(hints[f.name])) for f in dataclasses.fields(cls) if f.init)
-        _NAMES[cls] = tuple(name for name, _ in _FIELDS[cls])
+        _FIELDS[cls] = tuple((f.name, _passing(hints[f.name]), _checker(hints[f.name]))
+                             for f in dataclasses.fields(cls) if f.init)
+        _NAMES[cls] = tuple(field[0] for field in _FIELDS[cls])
+        _TAG_OF[cls] = msgpack.ExtType(_EXT_RECORD_TAG, name.encode())
+        _TAGS[name.encode()] = _Tag(cls)
     _ENUMS.update(enums)
     _RECORDS.update(records)
 
@@ -97,15 +123,18 @@ def registered_types() -> tuple[list[str], list[str]]:
 def _default(value):
     cls = type(value)
     names = _NAMES.get(cls)
-    if names is not None:  # a registered record (most of what crosses): its fields in order
-        return msgpack.ExtType(_EXT_RECORD, _pack([cls.__name__, [getattr(value, f) for f in names]]))
+    if names is not None:  # a registered record (most of what crosses): its tag, then its fields in order
+        return [_TAG_OF[cls], *[getattr(value, f) for f in names]]
     if cls is tuple:
-        return msgpack.ExtType(_EXT_TUPLE, _pack(list(value)))
+        return [_TUPLE_EXT, *value]
     if isinstance(value, enum.Enum):
-        name = type(value).__name__
-        if _ENUMS.get(name) is not type(value):
-            raise CodecError(f"enum {name} may not cross the control plane")
-        return msgpack.ExtType(_EXT_ENUM, _pack([name, value.value]))
+        ext = _ENUM_EXT.get((cls, value))
+        if ext is None:
+            name = cls.__name__
+            if _ENUMS.get(name) is not cls:
+                raise CodecError(f"enum {name} may not cross the control plane")
+            ext = _ENUM_EXT[cls, value] = msgpack.ExtType(_EXT_ENUM, _pack([name, value.value]))
+        return ext
     if isinstance(value, np.ndarray):
         array = np.ascontiguousarray(value)
         if array.dtype.str not in ARRAY_DTYPES or array.ndim > MAX_ARRAY_DIMS or array.nbytes > MAX_ARRAY_BYTES:
@@ -114,16 +143,13 @@ def _default(value):
     if isinstance(value, np.generic):
         return value.item()
     if isinstance(value, tuple):
-        return msgpack.ExtType(_EXT_TUPLE, _pack(list(value)))
+        return [_TUPLE_EXT, *value]
     if isinstance(value, (deque, frozenset, set)):
         return list(value)
     if isinstance(value, dict):  # Counter, OrderedDict, defaultdict: as a plain dict
         return dict(value)
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        cls = type(value)
-        if _RECORDS.get(cls.__name__) is not cls:
-            raise CodecError(f"{cls.__name__} may not cross the control plane")
-        return msgpack.ExtType(_EXT_RECORD, _pack([cls.__name__, [getattr(value, f) for f, _ in _FIELDS[cls]]]))
+        raise CodecError(f"{cls.__name__} may not cross the control plane")
     raise CodecError(f"{type(value).__name__} may not cross the control plane")
 
 
@@ -148,27 +174,60 @@ def encode(value) -> bytes:
 # --- decoding ----------------------------------------------------------------------------------
 
 
-def _ext(code: int, data: bytes):
-    if code == _EXT_RECORD:
-        return _record(_unpack(data))
-    if code == _EXT_TUPLE:
-        return tuple(_unpack(data))
-    if code == _EXT_ENUM:
-        item = _unpack(data)
-        if not (isinstance(item, list) and len(item) == 2 and isinstance(item[0], str)):
-            raise CodecError("malformed enum")
-        cls = _ENUMS.get(item[0])
+class _Decoding:
+    """One message's decoding: msgpack calls `ext` for each extension and `array` for each array once
+    its items are decoded (innermost first). A tag is only valid as the first item of an array; the
+    tags made and the tags used are counted, so a tag anywhere else (a map's value, the message
+    itself, an array's second item) makes the message invalid."""
+
+    __slots__ = ("open_tags",)
+
+    def __init__(self) -> None:
+        self.open_tags = 0
+
+    def ext(self, code: int, data: bytes):
+        if code == _EXT_RECORD_TAG:
+            tag = _TAGS.get(data)
+            if tag is None:
+                raise CodecError(f"unknown record type {data[:40]!r}")
+            self.open_tags += 1
+            return tag
+        if code == _EXT_TUPLE_TAG:
+            if data:
+                raise CodecError("malformed tuple tag")
+            self.open_tags += 1
+            return _TUPLE
+        if code == _EXT_ENUM:
+            member = _ENUM_VALUES.get(data)
+            if member is None:
+                member = _enum(msgpack.unpackb(data, raw=False, use_list=True))
+                if len(_ENUM_VALUES) < 4096:
+                    _ENUM_VALUES[bytes(data)] = member
+            return member
+        if code == _EXT_ARRAY:
+            return _array(msgpack.unpackb(data, raw=False, use_list=True))
+        raise CodecError(f"unknown extension type {code}")
+
+    def array(self, items: list):
+        if not items or type(items[0]) is not _Tag:
+            return items
+        self.open_tags -= 1
+        cls = items[0].cls
         if cls is None:
-            raise CodecError(f"unknown enum {item[0][:40]!r}")
-        try:
-            return cls(item[1])
-        except (ValueError, TypeError):
-            raise CodecError(f"{item[1]!r} is not a {cls.__name__}") from None
-    if code == _EXT_ARRAY:
-        return _array(_unpack(data))
-    if code == _EXT_RECORD:
-        return _record(_unpack(data))
-    raise CodecError(f"unknown extension type {code}")
+            return tuple(items[1:])
+        return _record(cls, items)
+
+
+def _enum(item):
+    if not (isinstance(item, list) and len(item) == 2 and isinstance(item[0], str)):
+        raise CodecError("malformed enum")
+    cls = _ENUMS.get(item[0])
+    if cls is None:
+        raise CodecError(f"unknown enum {item[0][:40]!r}")
+    try:
+        return cls(item[1])
+    except (ValueError, TypeError):
+        raise CodecError(f"{item[1]!r} is not a {cls.__name__}") from None
 
 
 def _array(item) -> np.ndarray:
@@ -188,26 +247,41 @@ def _array(item) -> np.ndarray:
     return np.frombuffer(raw, dtype=dtype).reshape(shape).copy()
 
 
-def _record(item):
-    if not (isinstance(item, list) and len(item) == 2 and isinstance(item[0], str) and isinstance(item[1], list)):
-        raise CodecError("malformed record")
-    cls = _RECORDS.get(item[0])
-    if cls is None:
-        raise CodecError(f"unknown record type {item[0][:40]!r}")
+def _record(cls: type, items: list):
+    """An instance of registered class `cls` from its array (its tag, then its fields)."""
     fields = _FIELDS[cls]
-    if len(item[1]) != len(fields):
-        raise CodecError(f"{cls.__name__} takes {len(fields)} fields, got {len(item[1])}")
-    for (name, check), value in zip(fields, item[1]):
-        if not check(value):
+    if len(items) - 1 != len(fields):
+        raise CodecError(f"{cls.__name__} takes {len(fields)} fields, got {len(items) - 1}")
+    values = items[1:]
+    for (name, passing, check), value in zip(fields, values):
+        if type(value) not in passing and not check(value):
             raise CodecError(f"{cls.__name__}.{name}: {type(value).__name__} does not match its type")
     try:
-        return cls(*item[1])
+        return cls(*values)
     except Exception as error:  # the class's own checks (__post_init__) refused it
         raise CodecError(f"{cls.__name__} refused its fields: {type(error).__name__}: {str(error)[:120]}") from None
 
 
 def _any(value) -> bool:
     return True
+
+
+def _passing(hint) -> frozenset:
+    """The types whose every value passes `_checker(hint)` (an empty set where each value must be
+    looked at: lists, dicts, tuples, anything)."""
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin is typing.Union or origin is types.UnionType:
+        return frozenset().union(*(_passing(h) for h in args))
+    if hint is type(None):
+        return frozenset({type(None)})
+    if hint is float:
+        return frozenset({float, int})
+    if hint in (int, bool, str, bytes):
+        return frozenset({hint})
+    if origin is None and isinstance(hint, type) and not issubclass(hint, PurePath):
+        if issubclass(hint, enum.Enum) or dataclasses.is_dataclass(hint):
+            return frozenset({hint})  # a decoded value is the class itself (no subclass is registered)
+    return frozenset()
 
 
 def _checker(hint):
@@ -254,10 +328,6 @@ def _checker(hint):
     raise TypeError(f"no control-plane check for {hint!r}")
 
 
-def _unpack(data: bytes):
-    return msgpack.unpackb(data, ext_hook=_ext, raw=False, strict_map_key=False, use_list=True)
-
-
 def decode(data: bytes):
     """The value in `data`, or CodecError (and nothing else) for anything that is not a valid message."""
     _load()
@@ -265,11 +335,16 @@ def decode(data: bytes):
         raise CodecError("a control message is bytes")
     if len(data) > MAX_MESSAGE_BYTES:
         raise CodecError(f"control message of {len(data)} bytes is over the {MAX_MESSAGE_BYTES}-byte limit")
+    decoding = _Decoding()
     try:
-        return _unpack(bytes(data))
+        value = msgpack.unpackb(bytes(data), ext_hook=decoding.ext, list_hook=decoding.array, raw=False,
+                                strict_map_key=False, use_list=True)
     except CodecError:
         raise
     except RecursionError:
         raise CodecError("control message nested too deep") from None
     except Exception as error:  # msgpack's own: truncated, extra data, bad types, stack limit
         raise CodecError(f"undecodable control message ({type(error).__name__}: {str(error)[:120]})") from None
+    if decoding.open_tags:
+        raise CodecError("a record or tuple tag that does not open an array")
+    return value
