@@ -79,7 +79,7 @@ def run_bench(out: Path, *, seed: int = 0) -> int:
     widest = max(sizes, key=sizes.get)
     print(f"largest frame   : {figures['follow_max_frame_bytes']} bytes in this run; "
           f"{sizes[widest]} bytes for any message ({widest}; budget {MAX_CONTROL_FRAME_BYTES})")
-    figures["processes"] = _process_figures(seed, result)
+    figures["processes"] = _process_figures(seed)
     figures["zenoh_link"] = _link_figures()
     figures["slam_like"] = _slam_like_figures(seed)
     figures["teams"] = _team_figures(seed)
@@ -92,29 +92,38 @@ def run_bench(out: Path, *, seed: int = 0) -> int:
     return 0
 
 
-def _process_figures(seed: int, one_process: dict) -> dict:
-    """The same follow with each robot in its own process (lockstep, over pipes: the default), run as
-    `rescuemesh run follow --processes`, beside the one-process figure; set-up (world built, robot
-    processes joined) apart. Neither counts importing the world; the command starts its robots first."""
-    with tempfile.TemporaryDirectory(prefix="rescuemesh-bench-") as folder:
-        # as a user runs it: the command starts the robots before it imports the world
-        subprocess.run([sys.executable, "-m", "rescuemesh", "run", "follow", "--processes", "--quiet",
-                        "--seed", str(seed), "--out", folder], capture_output=True, timeout=600, check=False)
-        result = json.loads((Path(folder) / "result.json").read_text())
+def _process_pair(seed: int, scenario: list[str]) -> dict:
+    """`rescuemesh run SCENARIO --out DIR` in one process, then with --processes (robots over pipes, the
+    default), as a user runs them: the same options, both recording their MCAP and plots. Each loop's
+    real-time factor is taken with set-up (world built, robot processes joined) apart."""
     figures = {}
-    for kind, r in (("one_process", one_process), ("processes", result)):
-        loop_s = r["wall_time_s"] - r["runtime"]["setup_s"]
-        figures[kind] = {"real_time_factor": r["real_time_factor"], "setup_s": r["runtime"]["setup_s"],
-                         "loop_real_time_factor": round(r["sim_time_s"] / loop_s, 2) if loop_s > 0 else None,
-                         "success": r["success"]}
-    figures["same_result"] = _comparable(result) == _comparable(one_process)
+    with tempfile.TemporaryDirectory(prefix="rescuemesh-bench-") as folder:
+        for kind, extra in (("one_process", []), ("processes", ["--processes"])):
+            # as a user runs it: the command starts the robots before it imports the world
+            subprocess.run([sys.executable, "-m", "rescuemesh", "run", *scenario, "--quiet", "--seed", str(seed),
+                            "--out", f"{folder}/{kind}", *extra], capture_output=True, timeout=1200, check=False)
+            r = json.loads((Path(folder) / kind / "result.json").read_text())
+            loop_s = r["wall_time_s"] - r["runtime"]["setup_s"]
+            figures[kind] = {"real_time_factor": r["real_time_factor"], "setup_s": r["runtime"]["setup_s"],
+                             "loop_real_time_factor": round(r["sim_time_s"] / loop_s, 2) if loop_s > 0 else None,
+                             "success": r["success"]}
+            if kind == "one_process":
+                one = r
+        figures["same_result"] = _comparable(r) == _comparable(one)
+        figures["carrier"] = r["runtime"]["control_plane"]["carrier"]
     figures["loop_ratio"] = _ratio(figures)
+    return figures
+
+
+def _process_figures(seed: int) -> dict:
+    """The follow with each robot in its own process beside the same command in one process (both
+    recording: the main follow figure above records nothing, so it is not the one to compare)."""
+    figures = _process_pair(seed, ["follow"])
     figures["goal_real_time_factor"] = PROCESSES_RTF_GOAL
-    figures["carrier"] = result["runtime"]["control_plane"]["carrier"]
     p, o = figures["processes"], figures["one_process"]
     print(f"processes       : follow with 4 processes over {figures['carrier']} {p['real_time_factor']}x real time "
           f"(goal >= {PROCESSES_RTF_GOAL:g}x; {p['setup_s']:.2f} s set-up, loop alone {p['loop_real_time_factor']}x) "
-          f"beside {o['real_time_factor']}x in one process (loop alone {o['loop_real_time_factor']}x); "
+          f"beside {o['real_time_factor']}x in one process (loop alone {o['loop_real_time_factor']}x; both with --out); "
           f"same result: {'yes' if figures['same_result'] else 'NO'}; loop ratio {figures['loop_ratio']} "
           f"(goal >= {PROCESSES_RATIO_GOAL:g})")
     return figures
@@ -128,22 +137,7 @@ def _ratio(figures: dict) -> float | None:
 
 def _process_convoy_figures(seed: int) -> dict:
     """The convoy of 10 in one process and with --processes, run one after the other as a user runs them."""
-    figures = {}
-    with tempfile.TemporaryDirectory(prefix="rescuemesh-bench-") as folder:
-        for kind, extra in (("one_process", []), ("processes", ["--processes"])):
-            subprocess.run([sys.executable, "-m", "rescuemesh", "run", "convoy", "--robots", "10", "--quiet",
-                            "--seed", str(seed), "--out", f"{folder}/{kind}", *extra],
-                           capture_output=True, timeout=1200, check=False)
-            r = json.loads((Path(folder) / kind / "result.json").read_text())
-            loop_s = r["wall_time_s"] - r["runtime"]["setup_s"]
-            figures[kind] = {"real_time_factor": r["real_time_factor"], "setup_s": r["runtime"]["setup_s"],
-                             "loop_real_time_factor": round(r["sim_time_s"] / loop_s, 2) if loop_s > 0 else None,
-                             "success": r["success"]}
-            if kind == "one_process":
-                one = r
-        figures["same_result"] = _comparable(r) == _comparable(one)
-        figures["carrier"] = r["runtime"]["control_plane"]["carrier"]
-    figures["loop_ratio"] = _ratio(figures)
+    figures = _process_pair(seed, ["convoy", "--robots", "10"])
     p, o = figures["processes"], figures["one_process"]
     print(f"processes       : convoy of 10 with 11 processes over {figures['carrier']}, loop alone {p['loop_real_time_factor']}x beside "
           f"{o['loop_real_time_factor']}x in one process: ratio {figures['loop_ratio']} (goal >= "
