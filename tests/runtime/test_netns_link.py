@@ -26,6 +26,7 @@ from rescuemesh.runtime.onboard.linked_robot import main as robot_main
 LOSS = 0.2
 SUBNET = "10.231.0"
 PORT = 7447
+RTO_MIN = "50ms"  # the robots' route's TCP resend floor (Linux's default: 200 ms)
 ROBOT_TIMEOUT_S = 45.0  # both robot processes end by then, whatever happens (killed after)
 
 
@@ -131,6 +132,11 @@ class LossyLink:
         _ip("-n", ns, "addr", "add", f"{SUBNET}.{host}/24", "dev", dev)
         _ip("-n", ns, "link", "set", "dev", dev, "up")
         _ip("-n", ns, "link", "set", "dev", "lo", "up")
+        # TCP's resend timeout starts at its floor, 200 ms by default, and doubles at each loss of the same
+        # segment. A route's rto_min lowers the floor for this link, whose round trip is under a
+        # millisecond, so a run of losses costs a quarter of the stall (docs/networks.md, "Lossy links")
+        _ip("-n", ns, "route", "replace", f"{SUBNET}.0/24", "dev", dev, "src", f"{SUBNET}.{host}",
+            "rto_min", RTO_MIN)
 
     def _netem(self, ns: str, dev: str) -> subprocess.CompletedProcess:
         if shutil.which("tc") is None:
@@ -196,7 +202,7 @@ def test_follow_completes_between_two_network_namespaces_with_20_percent_loss(tm
     logs = {name: (tmp_path / f"{name}.log").read_text() for name in ("robot_1", "robot_2")}
     assert leader.returncode == 0 and follower.returncode == 0, logs
     one, two = json.loads(leader_json.read_text()), json.loads(follower_json.read_text())
-    print(f"\nnetns Follow: {link.how}; thin-stream linear timeouts {'on' if link.thin else 'unavailable'}; "
+    print(f"\nnetns Follow: {link.how}; thin-stream linear timeouts {'on' if link.thin else 'unavailable'}; TCP rto_min {RTO_MIN}; "
           f"{time.monotonic() - started:.1f} s; {counts}; "
           f"robot_1 {one['mission']}; robot_2 drove {two['path_length_m']} m")
     assert one["mission"]["follow_result"] == "ACCEPTED" and one["mission"]["goal_result"] == "DONE"
@@ -236,7 +242,9 @@ def _bridge(dev_a: str, dev_b: str, loss: float, duration_s: float) -> None:
     other = dict(zip(sockets, reversed(list(sockets))))
     rng, passed, dropped, stop = random.Random(), 0, 0, []
     signal.signal(signal.SIGTERM, lambda *_: stop.append(True))
-    end = time.monotonic() + duration_s
+    started = time.monotonic()
+    end = started + duration_s
+    arp_dropped: list[float] = []  # when, in s since the bridge started
     while not stop and time.monotonic() < end:
         ready, _, _ = select.select(list(sockets), [], [], 0.1)
         for sock in ready:
@@ -249,13 +257,15 @@ def _bridge(dev_a: str, dev_b: str, loss: float, duration_s: float) -> None:
                     continue  # our own copy going out
                 if rng.random() < loss:
                     dropped += 1
+                    if frame[12:14] == b"\x08\x06":  # ARP: a lost reply delays the robots' first frames
+                        arp_dropped.append(round(time.monotonic() - started, 2))
                     continue
                 try:
                     other[sock].send(frame)
                     passed += 1
                 except OSError:
                     dropped += 1
-    print(f"bridge passed {passed} dropped {dropped} frames")
+    print(f"bridge passed {passed} dropped {dropped} frames (ARP dropped at {arp_dropped} s)")
 
 
 def _tx_checksum_off(dev: str) -> None:
