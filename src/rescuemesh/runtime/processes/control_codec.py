@@ -280,7 +280,7 @@ def _passing(hint) -> frozenset:
         return frozenset({hint})
     if origin is None and isinstance(hint, type) and not issubclass(hint, PurePath):
         if issubclass(hint, enum.Enum) or dataclasses.is_dataclass(hint):
-            return frozenset({hint})  # a decoded value is the class itself (no subclass is registered)
+            return frozenset({hint})  # exactly this class (a registered subclass goes through isinstance)
     return frozenset()
 
 
