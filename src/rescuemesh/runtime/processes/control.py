@@ -114,17 +114,21 @@ class ControlKey:
             raise ValueError("a control key has at least 16 bytes")
         self._key = bytes(key)
 
+    def _tag(self, signed: bytes) -> bytes:
+        """The tag of `signed` (header and body): keyed BLAKE2b, 16 bytes (RFC 7693)."""
+        return hashlib.blake2b(signed, key=self._key, digest_size=_TAG_BYTES).digest()
+
     def seal(self, direction: int, nonce: bytes, counter: int, robot: str, body: bytes) -> bytes:
         name = robot.encode()
         signed = _HEADER.pack(_VERSION, direction, nonce, counter, len(name)) + name + body
-        return hashlib.blake2b(signed, key=self._key, digest_size=_TAG_BYTES).digest() + signed
+        return self._tag(signed) + signed
 
     def open(self, data: bytes) -> tuple[int, bytes, int, str, bytes]:
         """(direction, nonce, counter, robot, body) of an authentic message; ControlError otherwise."""
         if len(data) < _TAG_BYTES + _HEADER.size:
             raise ControlError(f"{len(data)} bytes: too short to be a control message")
         tag, signed = data[:_TAG_BYTES], data[_TAG_BYTES:]
-        if not hmac.compare_digest(tag, hashlib.blake2b(signed, key=self._key, digest_size=_TAG_BYTES).digest()):
+        if not hmac.compare_digest(tag, self._tag(signed)):
             raise ControlError("not authenticated with this run's control key")
         version, direction, nonce, counter, length = _HEADER.unpack_from(signed)
         if version != _VERSION:
