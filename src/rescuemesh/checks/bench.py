@@ -72,6 +72,8 @@ def run_bench(out: Path, *, seed: int = 0) -> int:
     }
     print(f"follow scenario : {figures['follow_sim_time_s']:.1f} s simulated in {figures['follow_wall_time_s']:.2f} s"
           f" -> {figures['follow_real_time_factor']}x real time (goal >= {RTF_GOAL:g}x)")
+    figures["follow_budget"] = goal_budget(result, RTF_GOAL)
+    _print_budget("follow", figures["follow_budget"])
     print(f"codec           : {figures['codec_frames_per_s']:,} encode+decode frames/s (goal >= {CODEC_GOAL_FPS:,})")
     print(f"authenticated   : {figures['seal_open_frames_per_s']:,} AES-CCM seal+open frames/s on one core "
           f"(goal >= {SEAL_GOAL_FPS:,}), beside {figures['codec_frames_per_s']:,} CRC encode+decode")
@@ -179,7 +181,9 @@ def _slam_like_figures(seed: int) -> dict:
     print(f"SLAM-like map   : {boxes} wall boxes; follow {result['sim_time_s']:.1f} s simulated in "
           f"{result['wall_time_s']:.2f} s -> {result['real_time_factor']}x real time (goal >= {SLAM_RTF_GOAL:g}x)"
           f"{'' if result['success'] else ' (the run FAILED)'}")
-    return {"wall_boxes": boxes, "follow_real_time_factor": result["real_time_factor"],
+    budget = goal_budget(result, SLAM_RTF_GOAL)
+    _print_budget("SLAM-like follow", budget)
+    return {"budget": budget, "wall_boxes": boxes, "follow_real_time_factor": result["real_time_factor"],
             "follow_sim_time_s": result["sim_time_s"], "follow_wall_time_s": result["wall_time_s"],
             "follow_success": result["success"], "goal_real_time_factor": SLAM_RTF_GOAL}
 
@@ -199,6 +203,8 @@ def _team_figures(seed: int) -> dict:
                              "wall_s_by_part": parts, "world_wall_s": world_s,
                              "everything_else_wall_s": round(result["wall_time_s"] - world_s, 3)}
         goal = f" (goal >= {CONVOY_RTF_GOALS[count]:g}x)" if count in CONVOY_RTF_GOALS else ""
+        if count in CONVOY_RTF_GOALS:
+            teams[str(count)]["budget"] = goal_budget(result, CONVOY_RTF_GOALS[count])
         print(f"convoy {count:2d} robots: {result['sim_time_s']:5.1f} s simulated in {result['wall_time_s']:6.2f} s -> "
               f"{result['real_time_factor']:5.1f}x real time{goal}; {per_robot_ms:5.2f} ms wall per simulated s "
               f"per robot{'' if result['success'] else ' (the run FAILED)'}")
@@ -208,9 +214,36 @@ def _team_figures(seed: int) -> dict:
                   f"(medium {parts.get('medium', 0.0):.2f} s, robots {parts.get('robots', 0.0):.2f} s, set-up and "
                   f"mission {other - parts.get('medium', 0.0) - parts.get('robots', 0.0):.2f} s; goal: everything "
                   f"else <= the world)")
+        if count in CONVOY_RTF_GOALS:
+            _print_budget(f"convoy of {count}", teams[str(count)]["budget"])
     for count, goal in CONVOY_RTF_GOALS.items():
         teams[f"goal_real_time_factor_{count}"] = goal
     return teams
+
+
+def goal_budget(result: dict, goal_rtf: float) -> dict | None:
+    """What a real-time goal leaves for everything but the world, from one run's result.json: the
+    world's wall time (physics and lidar, `runtime.wall_s_by_part`), the real-time factor the world
+    alone would allow, the wall time the goal leaves the rest (medium, robots, mission, set-up) and
+    what the rest took. None for a run without the parts (robots in processes)."""
+    parts = result.get("runtime", {}).get("wall_s_by_part") or {}
+    if "world" not in parts or not result["sim_time_s"] > 0.0:
+        return None
+    world_s, wall_s, sim_s = parts["world"], result["wall_time_s"], result["sim_time_s"]
+    allowed_s = sim_s / goal_rtf
+    return {"goal_real_time_factor": goal_rtf, "world_wall_s": world_s,
+            "world_alone_real_time_factor": round(sim_s / world_s, 1) if world_s > 0.0 else None,
+            "rest_allowed_s": round(allowed_s - world_s, 3), "rest_took_s": round(wall_s - world_s, 3)}
+
+
+def _print_budget(label: str, budget: dict | None) -> None:
+    if budget is None:
+        return
+    allowed, took = budget["rest_allowed_s"], budget["rest_took_s"]
+    room = (f"leaves the rest {allowed:.2f} s, which took {took:.2f} s" if allowed > 0.0
+            else f"is past what the world alone allows (the rest took {took:.2f} s)")
+    print(f"  budget, {label}: the world alone (physics, lidar) {budget['world_wall_s']:.2f} s = "
+          f"{budget['world_alone_real_time_factor']}x; the goal {budget['goal_real_time_factor']:g}x {room}")
 
 
 def _network_figures(seed: int) -> dict:
