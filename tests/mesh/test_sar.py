@@ -240,3 +240,39 @@ def test_segment_acks_carry_the_nodes_own_counter():
     acks = [s.tx for s in air.log if s.sender == 2]
     assert [a.seq for a in acks] == list(range(len(acks))) and len(acks) >= 2
     assert all(decode_frame(a.data)[1].ref_seq == 1 for a in acks)
+
+
+def test_an_endpoint_resend_while_the_transfer_waits_starts_its_next_round_at_once():
+    # robot 2 never answers and its distance is unknown, so a round waits 0.55 s; the endpoint resends
+    # after 0.18 and 0.36 s (its Confirm timer), and each resend puts the frame on the air again
+    node = MeshNode(1)
+    node.send(data(1, 2, seq=7, size=22), 0.0)  # one segment
+    released = [(0.0, tx.segment) for tx in node.transmissions(0.0)]
+    for resend_at, attempt in ((0.18, 1), (0.36, 2)):
+        node.send(data(1, 2, seq=7, size=22, attempt=attempt), resend_at)
+        released += [(resend_at, tx.segment) for tx in node.transmissions(resend_at)]
+    assert released == [(0.0, 0), (0.18, 0), (0.36, 0)]
+    assert node.stats.resends_absorbed == 2 and node.stats.segments_retransmitted == 2
+    assert node.get_timer() == pytest.approx(0.36 + 0.55)  # the wait starts again from the last round
+
+
+def test_a_resend_while_segments_are_still_being_released_changes_nothing():
+    node = MeshNode(1)
+    node.send(data(1, 2, seq=7, size=80), 0.0)  # 5 segments, one per 20 ms
+    node.transmissions(0.0)
+    node.send(data(1, 2, seq=7, size=80, attempt=1), 0.01)
+    assert node.transmissions(0.01) == [] and node.stats.segments_retransmitted == 0
+
+
+def test_abandoned_transfers_end_without_an_event_and_the_next_one_starts():
+    node = MeshNode(1)
+    node.send(data(1, 2, seq=7, size=22), 0.0)
+    node.send(data(1, 2, seq=8, size=22), 0.0)  # queued behind seq 7
+    node.send(data(1, 2, seq=9, size=22), 0.0)  # queued behind seq 8
+    node.transmissions(0.0)
+    node.abandon_transfers(lambda dst, seq: seq == 9, 0.1)  # 7 given up, 8 confirmed meanwhile
+    assert node.stats.transfers_abandoned == 2
+    assert [(tx.seq, tx.segment) for tx in node.transmissions(0.1)] == [(9, 0)]
+    assert not any(type(e) in (TransferComplete, TransferFailed) for e in iter(node.next_event, None))
+    node.abandon_transfers(lambda dst, seq: False, 0.2)
+    assert node.get_timer() is None and node.transmissions(0.2) == []

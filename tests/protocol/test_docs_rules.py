@@ -238,7 +238,7 @@ def test_section_8_gives_every_config_field_with_its_default():
     assert ast.unparse(endpoint["reliability"]) == "ReliabilityConfig()"
     assert ast.unparse(endpoint["initial_ttl"]) == "DEFAULT_TTL"
     assert re.search(r"DEFAULT_TTL = (\d+)", section(8))[1] == str(default_of(EndpointConfig, "initial_ttl")) == "7"
-    for name in ("heartbeat_ttl", "initial_seq", "initial_epoch"):
+    for name in ("heartbeat_ttl", "initial_seq", "initial_epoch", "announce_epoch_on_resend"):
         assert ast.literal_eval(endpoint[name]) == default_of(EndpointConfig, name), name
     # this used to say initial_ttl=3: an endpoint sends with 7 unless told otherwise
     assert EndpointConfig().initial_ttl == 7

@@ -392,6 +392,7 @@ def test_stats():
         "frames_sent": 1, "broadcasts_sent": 0, "bytes_sent": 20, "max_frame_bytes": 20, "retries": 0,
         "confirms_sent": 0, "confirms_received": 1, "delivery_failures": 0, "duplicates": 0,
         "frames_rejected": 0, "frames_not_for_us": 0, "frames_received": 1, "confirms_unmatched": 0, "epochs": 0,
+        "epoch_announcements": 0,
     }
     assert b.stats.max_frame_bytes == 16 and b.stats.confirms_sent == 1
 

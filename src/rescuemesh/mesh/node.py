@@ -179,7 +179,7 @@ class MeshNode:
             if ttl != view.ttl:
                 frame = with_ttl(frame, ttl)
                 self._stats.sent_short_ttl += 1
-            self._push(now, Transmission(self._seal(frame, epoch), view.src, view.dst, view.msg_type, view.seq,
+            self._outbox.push(now, Transmission(self._seal(frame, epoch), view.src, view.dst, view.msg_type, view.seq,
                                          ttl, False, None, None, self._key(frame, epoch)))
         elif view.dst == BROADCAST:
             raise ValueError("a frame longer than 20 bytes is segmented and needs a unicast destination")
@@ -282,6 +282,10 @@ class MeshNode:
                 best = t
         return best
 
+    def abandon_transfers(self, awaited, now: float) -> None:
+        """End the transfers whose frame `awaited(dst, seq)` says nobody waits for (sar.py, abandon)."""
+        self._sender.abandon(awaited, now)
+
     def handle_timer(self, now: float) -> None:
         """Neighbours lost or forgotten, SAR deadlines and acks, the next paced segment."""
         self._events.extend(self._neighbours.expire(now))
@@ -307,9 +311,6 @@ class MeshNode:
         return self._neighbours.snapshot()
 
     # --- internals -------------------------------------------------------------------------------
-
-    def _push(self, due: float, item: Transmission) -> None:
-        self._outbox.push(due, item)
 
     def _unicast_ttl(self, frame: bytes, view: FrameView, now: float) -> int:
         """TTL for a control frame we originate (module comment, "TTL on send")."""
@@ -360,7 +361,7 @@ class MeshNode:
     def _queue_segment(self, view: FrameView, data: bytes, index: int, total: int, round_: int,
                        now: float) -> None:
         epoch = self._tx_epoch.get((view.dst, view.seq), 0)
-        self._push(now, Transmission(self._seal(data, epoch), view.src, view.dst, view.msg_type, view.seq,
+        self._outbox.push(now, Transmission(self._seal(data, epoch), view.src, view.dst, view.msg_type, view.seq,
                                      view.ttl, False, index, total, self._key(data, epoch)))
 
     def _send_ack(self, dst: int, ref_seq: int, base: int, bitmap: int, now: float) -> None:
@@ -368,7 +369,7 @@ class MeshNode:
         seq, epoch = self.number()
         header = Header(PROTOCOL_VERSION, FrameFlags.NONE, ttl, 0, MessageType.SEGMENT_ACK, self.address, dst, seq)
         data = encode_frame(header, SegmentAck(ref_seq, base, bitmap))
-        self._push(now, Transmission(self._seal(data, epoch), self.address, dst, MessageType.SEGMENT_ACK, seq,
+        self._outbox.push(now, Transmission(self._seal(data, epoch), self.address, dst, MessageType.SEGMENT_ACK, seq,
                                      ttl, False, None, None, self._key(data, epoch)))
         self._stats.acks_sent += 1
 

@@ -31,6 +31,17 @@ incomplete timer, completed memory). Must not know relays, the cache, clocks or 
 #     WAITING --deadline, progress in this round----------> SENDING, round + 1
 #     WAITING --deadline, none, attempts_left > 0---------> SENDING, round + 1, attempts_left - 1
 #     WAITING --deadline, none, attempts_left == 0--------> done (TransferFailed)
+#     WAITING --the endpoint resends the frame------------> as if the deadline had passed
+#     any     --the endpoint no longer awaits the frame---> done, no event (abandon())
+#
+# The endpoint above resends a frame whose Confirm did not come in its own time (0.15 s and more,
+# docs/protocol.md section 7), and a resend of a frame whose transfer runs is absorbed (the
+# transfer carries it). While the transfer waits, the resend starts its next round at once, so
+# each of the endpoint's sends puts the frame on the air at least once, as an unsegmented frame's
+# would: with the wait for a destination of unknown distance (0.55 s), the endpoint's three sends
+# (0.54 s) used to see a single round. When the endpoint stops waiting (its Confirm came, it gave
+# the frame up, it cancelled it), the node's stack calls abandon(): a given-up command is not
+# delivered late, and the next frame to that destination does not queue behind it.
 #
 # "Progress" is an ack that acknowledges a segment not acknowledged before; it resets
 # attempts_left to max_retransmissions (Zephyr's 4), so a transfer fails only after the first
@@ -139,8 +150,14 @@ class SarSender:
         dst, seq = view.dst, view.seq
         active = self._active.get(dst)
         queued = self._waiting.get(dst, ())
-        if (active is not None and active.view.seq == seq) or any(v.seq == seq for v, _ in queued):
+        if active is not None and active.view.seq == seq:
             self._stats.resends_absorbed += 1  # the running transfer carries it
+            if active.state is TransferState.WAITING:  # the endpoint's timer ran out first: a round now
+                self._round_on_deadline(active, now)
+                self._release(now)
+            return
+        if any(v.seq == seq for v, _ in queued):
+            self._stats.resends_absorbed += 1  # the queued transfer will carry it
             return
         self._stats.transfers_started += 1
         if active is not None:
@@ -186,19 +203,35 @@ class SarSender:
     def handle_timer(self, now: float) -> None:
         """Give up or start a new round for every passed deadline; release a segment if due."""
         for transfer in list(self._active.values()):
-            if transfer.state is not TransferState.WAITING or transfer.deadline_s > now:
-                continue
-            if transfer.progressed:
-                self._next_round(transfer, now)
-            elif transfer.attempts_left == 0:
-                view = transfer.view
-                failed = TransferFailed(view.dst, view.seq, transfer.acked_count, transfer.total, now)
-                self._stats.transfers_failed += 1
-                self._finish(transfer, failed, now)
-            else:
-                transfer.attempts_left -= 1
-                self._next_round(transfer, now)
+            if transfer.state is TransferState.WAITING and transfer.deadline_s <= now:
+                if not self._round_on_deadline(transfer, now):
+                    view = transfer.view
+                    failed = TransferFailed(view.dst, view.seq, transfer.acked_count, transfer.total, now)
+                    self._stats.transfers_failed += 1
+                    self._finish(transfer, failed, now)
         self._release(now)
+
+    def abandon(self, awaited: Callable[[int, int], bool], now: float) -> None:
+        """End every transfer, running or queued, whose frame `awaited(dst, seq)` says the endpoint
+        above no longer waits for (its Confirm came, it gave the frame up, or it cancelled it): no
+        event, counted in `transfers_abandoned`. The next transfer to that destination starts."""
+        if not self._active:  # the common case, asked after every call into the stack
+            return  # (a transfer waits in the queue only behind a running one)
+        for dst, waiting in list(self._waiting.items()):
+            kept = deque(item for item in waiting if awaited(dst, item[0].seq))
+            self._stats.transfers_abandoned += len(waiting) - len(kept)
+            if kept:
+                self._waiting[dst] = kept
+            else:
+                del self._waiting[dst]
+        ended = False
+        for transfer in list(self._active.values()):
+            if not awaited(transfer.view.dst, transfer.view.seq):
+                self._stats.transfers_abandoned += 1
+                self._finish(transfer, None, now)
+                ended = True
+        if ended:
+            self._release(now)
 
     # internals
 
@@ -209,6 +242,16 @@ class SarSender:
         self._active[view.dst] = transfer
         self._next_release_s = max(self._next_release_s, now)
 
+    def _round_on_deadline(self, transfer: Transfer, now: float) -> bool:
+        """What a passed deadline does (or an endpoint resend while waiting): the next round, out of
+        the budget unless progress came in this one. False when the budget is spent."""
+        if not transfer.progressed:
+            if transfer.attempts_left == 0:
+                return False
+            transfer.attempts_left -= 1
+        self._next_round(transfer, now)
+        return True
+
     def _next_round(self, transfer: Transfer, now: float) -> None:
         transfer.round += 1
         transfer.progressed = False
@@ -216,10 +259,11 @@ class SarSender:
         transfer.state = TransferState.SENDING
         self._next_release_s = max(self._next_release_s, now)
 
-    def _finish(self, transfer: Transfer, event: MeshEvent, now: float) -> None:
+    def _finish(self, transfer: Transfer, event: MeshEvent | None, now: float) -> None:
         dst = transfer.view.dst
         del self._active[dst]
-        self._emit(event)
+        if event is not None:
+            self._emit(event)
         waiting = self._waiting.get(dst)
         if waiting:
             view, frame = waiting.popleft()

@@ -1,6 +1,6 @@
-"""A robot's network stack: its protocol endpoint on its mesh node, with the aioquic API a transport
-pumps. Owns the glue only: frames down into the node, delivered frames up into the endpoint with
-their hop count, hop counts into confirm timeouts, network events out. Must not know radios or clocks.
+"""A robot's network stack: its endpoint on its mesh node, with the aioquic API a transport pumps.
+Owns the glue only: frames down, delivered frames and hop counts up, transfers ended once the endpoint
+stops awaiting their Confirm, network events out. Must not know radios or clocks.
 """
 
 from __future__ import annotations
@@ -67,9 +67,11 @@ class NetworkStack:
 
     def transmissions(self, now: float) -> list[Transmission]:
         """What to put on the air now: the endpoint's new frames (segmented as needed), relays."""
+        node = self.node
+        node.abandon_transfers(self.endpoint.awaits, now)  # first: a new frame to that robot need not queue
         for frame, epoch in self.endpoint.drain(now):
-            self.node.send(frame, now, epoch)
-        return self.node.transmissions(now)
+            node.send(frame, now, epoch)
+        return node.transmissions(now)
 
     def frames_to_send(self, now: float) -> list[bytes]:
         """The same as bytes only, for transports that need no metadata (BLE, Zenoh)."""
@@ -83,6 +85,7 @@ class NetworkStack:
         timer = self.endpoint.get_timer()
         if timer is not None and timer <= now:
             self.endpoint.handle_timer(now)
+            self.node.abandon_transfers(self.endpoint.awaits, now)  # a frame given up: no further round
         timer = self.node.get_timer()
         if timer is not None and timer <= now:
             self.node.handle_timer(now)

@@ -42,6 +42,7 @@ class MeshStats:
     transfers_complete: int = 0
     transfers_failed: int = 0
     resends_absorbed: int = 0  # endpoint resends of a frame whose transfer is still running
+    transfers_abandoned: int = 0  # ended because the endpoint no longer awaits the frame
     reassemblies_complete: int = 0
     reassemblies_expired: int = 0  # incomplete timer
     reassemblies_rejected: int = 0  # segments dropped: too many concurrent reassemblies

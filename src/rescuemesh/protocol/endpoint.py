@@ -6,9 +6,9 @@ entry point takes `now` in s, and the caller moves the bytes (docs/design.md, do
 from __future__ import annotations
 
 from collections import OrderedDict, deque
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import replace
 
-from .codec import (BROADCAST, DEFAULT_TTL, MAX_ATTEMPT, MAX_CONTROL_FRAME_BYTES, MAX_EPOCH, MAX_SEQ, MAX_TTL,
+from .codec import (BROADCAST, MAX_ATTEMPT, MAX_CONTROL_FRAME_BYTES, MAX_EPOCH, MAX_SEQ,
                     MAX_UNICAST_ADDRESS, PROTOCOL_VERSION, TYPE_MASK, FrameFlags, Header, decode_frame, encode_frame)
 from .errors import FrameError
 from .events import (
@@ -37,63 +37,14 @@ from .messages import (
     ResultCode,
     is_command,
 )
-from .reliability import DuplicateCache, ReliabilityConfig, RetransmissionQueue, TimeoutAction, Verdict
+from .endpoint_config import EndpointConfig, EndpointStats
+from .reliability import DuplicateCache, RetransmissionQueue, TimeoutAction, Verdict
 
 
 #: Results after which a command's final report is still to come.
 _INTERIM = frozenset({ResultCode.ACCEPTED, ResultCode.IN_PROGRESS})
 #: Commands awaiting a final report, at most (the oldest are forgotten first).
 MAX_OPEN_COMMANDS = 256
-
-
-@dataclass(frozen=True, slots=True)
-class EndpointConfig:
-    """reliability: retry and duplicate rules. initial_ttl: TTL of every frame we originate, in hops
-    (0..15). heartbeat_ttl: TTL of our Heartbeats (Bluetooth Mesh's Heartbeat Publication TTL;
-    None: initial_ttl): how far they reach. initial_seq: first sequence number (0..65535); a runtime that restarts an endpoint can
-    draw it from its seeded generator so old seqs are not reused at once."""
-
-    reliability: ReliabilityConfig = field(default_factory=ReliabilityConfig)
-    initial_ttl: int = DEFAULT_TTL
-    heartbeat_ttl: int | None = None
-    initial_seq: int = 0
-    initial_epoch: int = 0
-
-    def __post_init__(self) -> None:
-        if not (isinstance(self.initial_ttl, int) and 0 <= self.initial_ttl <= MAX_TTL):
-            raise ValueError(f"initial_ttl must be 0..{MAX_TTL}, got {self.initial_ttl!r}")
-        heartbeat_ttl = self.heartbeat_ttl
-        if heartbeat_ttl is not None and not (isinstance(heartbeat_ttl, int) and 0 <= heartbeat_ttl <= MAX_TTL):
-            raise ValueError(f"heartbeat_ttl must be 0..{MAX_TTL} or None, got {self.heartbeat_ttl!r}")
-        if not (isinstance(self.initial_seq, int) and 0 <= self.initial_seq <= MAX_SEQ):
-            raise ValueError(f"initial_seq must be 0..{MAX_SEQ}, got {self.initial_seq!r}")
-        if not (isinstance(self.initial_epoch, int) and 0 <= self.initial_epoch <= MAX_EPOCH):
-            raise ValueError(f"initial_epoch must be 0..{MAX_EPOCH}, got {self.initial_epoch!r}")
-
-
-@dataclass(slots=True)
-class EndpointStats:
-    """Counters since the endpoint was made. Frames and bytes sent count frames drained by
-    frames_to_send(); frames_received counts every receive() call, including the rejected ones and
-    the ones not for us (other destination, or our own frames heard back)."""
-
-    frames_sent: int = 0
-    broadcasts_sent: int = 0  # of frames_sent, those to BROADCAST (Heartbeats)
-    bytes_sent: int = 0
-    max_frame_bytes: int = 0
-    retries: int = 0  # resends (a frame sent 3 times counts 2)
-    confirms_sent: int = 0  # Confirm frames drained, cached re-sends included
-    confirms_received: int = 0
-    delivery_failures: int = 0
-    duplicates: int = 0  # commands/PoseUpdates recognised as resends
-    frames_rejected: int = 0
-    frames_not_for_us: int = 0
-    frames_received: int = 0
-    confirms_unmatched: int = 0  # Confirms answering nothing we sent or still await: dropped
-    epochs: int = 0  # sequence wraps (each starts a new epoch)
-
-    def as_dict(self) -> dict[str, int]:
-        return asdict(self)
 
 
 class Endpoint:
@@ -130,6 +81,9 @@ class Endpoint:
         self._handlers[MessageType.SEGMENT_ACK] = self._on_mesh_control
         self._path_hops: dict[int, int] = {}
         self._hops = 1  # hops of the frame being handled, for its events
+        self._answered: set[int] = set()  # robots whose Confirm matched a frame of ours: they know our epoch
+        self._heartbeat: tuple[int, int] | None = None  # our latest Heartbeat's (active_command, capabilities)
+        self._heartbeat_s = float("-inf")  # when it was queued
 
     # --- sending -------------------------------------------------------------------------------
 
@@ -175,6 +129,7 @@ class Endpoint:
         seq = self.allocate_seq()
         ttl = self.config.initial_ttl if self.config.heartbeat_ttl is None else self.config.heartbeat_ttl
         self._queue(self._encode(BROADCAST, seq, Heartbeat(active_command, ttl, self.epoch, capabilities), ttl))
+        self._heartbeat, self._heartbeat_s = (active_command, capabilities), now
 
     def allocate_seq(self) -> int:
         """The next sequence number of this endpoint, for any frame it originates (the mesh layer's
@@ -221,6 +176,11 @@ class Endpoint:
         self._send_confirm(dst, entry.confirm_frame)
         return True
 
+    def awaits(self, dst: int, seq: int) -> bool:
+        """True while our frame `seq` to `dst` waits for its Confirm (sent, not confirmed, not given
+        up, not cancelled): the mesh layer ends a segmented frame's transfer once this is False."""
+        return (dst, seq) in self._pending
+
     def cancel_pending(self, dst: int | None = None) -> int:
         """Stop retrying the frames to `dst` (all if None), without DeliveryFailed; returns how many."""
         return len(self._pending.cancel(dst))
@@ -229,6 +189,7 @@ class Endpoint:
         """`src` restarted (the mesh layer saw a new epoch from it): its old sequence numbers mean
         nothing now, so forget what was seen from it and what it still owed us reports for."""
         self._seen.forget(src)
+        self._answered.discard(src)  # it rebooted: it knows no epoch of ours any more
         for key in [k for k in self._open if k[0] == src]:
             del self._open[key]
 
@@ -281,6 +242,8 @@ class Endpoint:
         after max_sends sends with a DeliveryFailed event."""
         for action, frame in self._pending.expire(now):
             if action is TimeoutAction.RESEND:
+                if self.config.announce_epoch_on_resend and frame.dst not in self._answered:
+                    self._announce_epoch(now)
                 attempt = min(frame.sends - 1, MAX_ATTEMPT)
                 self._queue(encode_frame(replace(frame.header, attempt=attempt), frame.message))
                 self.stats.retries += 1
@@ -310,6 +273,14 @@ class Endpoint:
     def _queue(self, frame: bytes) -> None:
         self._outbox.append((frame, self.epoch))
 
+    def _announce_epoch(self, now: float) -> None:
+        """Our latest Heartbeat again, under a fresh number, unless one went out within ack_timeout_s:
+        a robot that missed our Heartbeats learns our epoch before the resend that follows."""
+        if self._heartbeat is None or now - self._heartbeat_s < self.config.reliability.ack_timeout_s:
+            return
+        self.stats.epoch_announcements += 1
+        self.send_heartbeat(now, *self._heartbeat)
+
     def _send_confirm(self, dst: int, message: Confirm) -> None:
         """A Confirm always goes out under a fresh sequence number, a cached one re-sent too, so
         that replay protection, which accepts each number once, lets it through."""
@@ -317,6 +288,7 @@ class Endpoint:
 
     def _new_epoch(self) -> None:
         self.epoch = (self.epoch + 1) & MAX_EPOCH
+        self._answered.clear()  # nobody knows the new epoch before our next Heartbeat
         self.stats.epochs += 1
         for frame in self._pending.cancel(None):
             self.stats.delivery_failures += 1
@@ -356,6 +328,7 @@ class Endpoint:
         key = (header.src, message.ref_seq)
         frame = self._pending.acknowledge(header.src, message.ref_seq, message.ref_type)
         if frame is not None:
+            self._answered.add(header.src)
             solicited, sends, rtt_s = True, frame.sends, now - frame.last_sent_s
             if message.result in _INTERIM and message.ref_type in COMMAND_TYPES:
                 self._open[key] = message.ref_type

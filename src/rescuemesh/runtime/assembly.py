@@ -49,7 +49,8 @@ def assemble_robot(name: str, body: Body, costmap: Costmap, config: SimConfig, s
     address = robot_address(name)
     mesh = config.mesh  # carries config.relay (SimConfig writes it in)
     endpoint = Endpoint(address, EndpointConfig(reliability=reliability_for(config), initial_ttl=mesh.initial_ttl,
-                                                heartbeat_ttl=mesh.heartbeat_ttl, initial_epoch=epoch))
+                                                heartbeat_ttl=mesh.heartbeat_ttl, initial_epoch=epoch,
+                                                announce_epoch_on_resend=sealer is not None))
     stack = NetworkStack(endpoint, MeshNode(address, mesh, sealer))
     brain_config = config.brain if config.brain.base is not None else replace(config.brain, base=start)
     return RobotBrain(name, body, stack, NavigateToPose(costmap), costmap, brain_config), stack
