@@ -126,3 +126,37 @@ def test_a_segmented_frame_given_up_by_its_endpoint_is_not_delivered_later_nor_h
     air.pump(until=1.1)
     assert [e.seq for e in events(b) if isinstance(e, CommandReceived)] == [second]  # never the given-up one
     assert a.node.stats.segments_sent == 4
+
+
+def test_a_commander_that_cannot_open_our_acks_gets_our_epoch_and_confirm_when_it_resends_segments():
+    # b's Heartbeats never reach a, so a cannot open b's SegmentAck or Confirm; a's resend puts its
+    # segment on the air again; b's node recognises a frame it has reassembled (SegmentsResent), and
+    # b's endpoint repeats its Heartbeat (free of loss) and its cached Confirm
+    a, b = stack(1), stack(2)
+    air = LossyAir([a, b], lambda sender, receiver, data: sender == 2 and heartbeat(data)
+                   and b.endpoint.stats.epoch_announcements == 0)
+    for s in (a, b):
+        s.endpoint.send_heartbeat(air.now)
+    air.pump()
+    seq = a.endpoint.send_command(2, ForwardMsg(3, b"\x05" * 11), air.now)  # one segment
+    air.pump()
+    assert [e.seq for e in events(b) if isinstance(e, CommandReceived)] == [seq]
+    b.endpoint.confirm(1, seq, MessageType.FORWARD_MSG, ResultCode.ACCEPTED, air.now)
+    air.pump(until=0.1)
+    assert a.node.stats.dropped_unknown_epoch == 2  # b's SegmentAck and Confirm
+    air.pump(until=0.2)  # a's resend at 0.18 s: a round of the transfer
+    assert b.node.stats.segments_late == 1 and b.endpoint.stats.epoch_announcements == 1
+    assert any(isinstance(e, ConfirmReceived) and e.ref_seq == seq for e in events(a))
+    assert a.node.stats.transfers_abandoned == 1  # the Confirm ended the transfer
+    assert not [e for e in events(b) if isinstance(e, CommandReceived)]  # nothing delivered twice
+
+
+def test_announcements_for_one_robot_stop_after_three():
+    a, b = stack(1), stack(2)
+    air = LossyAir([a, b], lambda sender, receiver, data: sender == 1)  # nothing of a's arrives
+    a.endpoint.send_heartbeat(air.now)
+    air.pump()
+    for _ in range(3):
+        a.endpoint.send_command(2, Stop(), air.now)
+        air.pump(until=air.now + 1.0)  # 2 resends each
+    assert a.endpoint.stats.retries == 6 and a.endpoint.stats.epoch_announcements == 3

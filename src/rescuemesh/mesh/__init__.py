@@ -10,6 +10,7 @@ from .events import (
     NeighbourFound,
     NeighbourLost,
     PeerRestarted,
+    SegmentsResent,
     TransferComplete,
     TransferFailed,
 )
@@ -29,6 +30,7 @@ __all__ = [
     "NeighbourLost",
     "NetworkStack",
     "PeerRestarted",
+    "SegmentsResent",
     "TEAM_RELAY_RETRANSMIT_COUNT",
     "TransferComplete",
     "TransferFailed",

@@ -78,6 +78,16 @@ class PeerRestarted(MeshEvent):
     now: float
 
 
+@dataclass(frozen=True, slots=True)
+class SegmentsResent(MeshEvent):
+    """`src` sent segments of its frame `seq` again after we had reassembled and acknowledged it: it
+    lacks our SegmentAck and maybe our Confirm (the stack asks the endpoint to answer again)."""
+
+    src: int
+    seq: int
+    now: float
+
+
 # A frame for us is delivered as one FrameDelivered per robot that hears it (a thousand a second in a
 # team of 30): built straight into its slots, as codec._make_header builds a Header, without the
 # frozen dataclass's object.__setattr__ per field. The same object as FrameDelivered(...).

@@ -63,7 +63,7 @@ from rescuemesh.protocol.messages import SegmentAck
 
 from .cache import NetworkCache
 from .config import MeshConfig
-from .events import MeshEvent, PeerRestarted, frame_delivered
+from .events import MeshEvent, PeerRestarted, SegmentsResent, frame_delivered
 from .frames import ATTEMPT_SHIFT, TTL_MASK, FrameKind, FrameView, cache_key, read_logical, with_ttl
 from .neighbours import NeighbourInfo, NeighbourTable
 from .outbox import Outbox
@@ -146,7 +146,7 @@ class MeshNode:
             self.config, self._stats, self._send_ack, self._deliver, self._neighbours.init_ttl_of,
             self._replay.may_open if self._replay is not None else None,
             self._reassembly_closed if self._replay is not None else None,
-        )
+            lambda src, seq, now: self._events.append(SegmentsResent(src, seq, now)))
         # what a frame for us becomes, by kind (a PLAIN one: delivered, in receive)
         self._local = {FrameKind.SEGMENT: self._on_segment, FrameKind.SEGMENT_ACK: self._on_segment_ack}
 

@@ -68,8 +68,10 @@ class SarReceiver:
         init_ttl_of: Callable[[int], int | None],
         may_open: OpenCheck | None = None,
         on_closed: CloseSink | None = None,
+        on_resent: Callable[[int, int, float], None] | None = None,
     ) -> None:
         self._config = config
+        self._on_resent = on_resent  # (src, seq, now): segments of a frame we acknowledged came again
         self._may_open = may_open
         self._on_closed = on_closed
         self._stats = stats
@@ -243,3 +245,5 @@ class SarReceiver:
         if resend or now - done.last_ack_s >= self._config.duplicate_ack_interval_s:
             done.last_ack_s = now
             self._send_ack(key[0], key[1], done.seg_n + 1, 0, now)
+            if not resend and self._on_resent is not None:  # (a resend is delivered: answered above)
+                self._on_resent(key[0], key[1], now)

@@ -15,6 +15,7 @@ from .events import (
     NeighbourFound,
     NeighbourLost,
     PeerRestarted,
+    SegmentsResent,
     TransferComplete,
     TransferFailed,
 )
@@ -43,6 +44,7 @@ class NetworkStack:
             NeighbourLost: self._events.append,
             TransferComplete: self._events.append,
             TransferFailed: self._events.append,
+            SegmentsResent: self._resent,
         }
 
     @property
@@ -124,6 +126,9 @@ class NetworkStack:
     def _restarted(self, event: PeerRestarted) -> None:
         self.endpoint.forget_peer(event.address)
         self._events.append(event)
+
+    def _resent(self, event: SegmentsResent) -> None:
+        self.endpoint.answer_resend(event.src, event.seq, event.now)
 
     def _found(self, event: NeighbourFound) -> None:
         self._note_hops(event.address, event.hops)

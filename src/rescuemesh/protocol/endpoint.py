@@ -45,6 +45,10 @@ from .reliability import DuplicateCache, RetransmissionQueue, TimeoutAction, Ver
 _INTERIM = frozenset({ResultCode.ACCEPTED, ResultCode.IN_PROGRESS})
 #: Commands awaiting a final report, at most (the oldest are forgotten first).
 MAX_OPEN_COMMANDS = 256
+#: Heartbeats repeated for one robot that has not answered us, at most, per epoch of ours
+#: (docs/protocol.md section 7): each costs a broadcast, and a robot that knows our epoch but
+#: whose Confirms are lost would otherwise draw one at every resend.
+EPOCH_ANNOUNCEMENTS_PER_PEER = 3
 
 
 class Endpoint:
@@ -82,6 +86,7 @@ class Endpoint:
         self._path_hops: dict[int, int] = {}
         self._hops = 1  # hops of the frame being handled, for its events
         self._answered: set[int] = set()  # robots whose Confirm matched a frame of ours: they know our epoch
+        self._announced: dict[int, int] = {}  # Heartbeats repeated for each robot not yet in _answered
         self._heartbeat: tuple[int, int] | None = None  # our latest Heartbeat's (active_command, capabilities)
         self._heartbeat_s = float("-inf")  # when it was queued
 
@@ -176,6 +181,16 @@ class Endpoint:
         self._send_confirm(dst, entry.confirm_frame)
         return True
 
+    def answer_resend(self, src: int, seq: int, now: float) -> None:
+        """`src` resent its frame `seq` below us (the mesh layer saw segments of a frame it had
+        reassembled): answer it as a resend we hear, with the cached Confirm if there is one."""
+        if self._seen.lookup(src, seq) is None:
+            return
+        self.stats.duplicates += 1
+        if self.config.announce_epoch_on_resend:
+            self._announce_epoch(src, now)
+        self.repeat_report(src, seq)
+
     def awaits(self, dst: int, seq: int) -> bool:
         """True while our frame `seq` to `dst` waits for its Confirm (sent, not confirmed, not given
         up, not cancelled): the mesh layer ends a segmented frame's transfer once this is False."""
@@ -190,6 +205,7 @@ class Endpoint:
         nothing now, so forget what was seen from it and what it still owed us reports for."""
         self._seen.forget(src)
         self._answered.discard(src)  # it rebooted: it knows no epoch of ours any more
+        self._announced.pop(src, None)
         for key in [k for k in self._open if k[0] == src]:
             del self._open[key]
 
@@ -242,8 +258,8 @@ class Endpoint:
         after max_sends sends with a DeliveryFailed event."""
         for action, frame in self._pending.expire(now):
             if action is TimeoutAction.RESEND:
-                if self.config.announce_epoch_on_resend and frame.dst not in self._answered:
-                    self._announce_epoch(now)
+                if self.config.announce_epoch_on_resend:
+                    self._announce_epoch(frame.dst, now)
                 attempt = min(frame.sends - 1, MAX_ATTEMPT)
                 self._queue(encode_frame(replace(frame.header, attempt=attempt), frame.message))
                 self.stats.retries += 1
@@ -273,13 +289,19 @@ class Endpoint:
     def _queue(self, frame: bytes) -> None:
         self._outbox.append((frame, self.epoch))
 
-    def _announce_epoch(self, now: float) -> None:
-        """Our latest Heartbeat again, under a fresh number, unless one went out within ack_timeout_s:
-        a robot that missed our Heartbeats learns our epoch before the resend that follows."""
-        if self._heartbeat is None or now - self._heartbeat_s < self.config.reliability.ack_timeout_s:
+    def _announce_epoch(self, peer: int, now: float) -> None:
+        """Before a frame to `peer` that answers a sign it missed ours (our resend, or its resend
+        of what we confirmed): our latest Heartbeat again, under a fresh number, so a robot that
+        missed our Heartbeats can open what follows. Not for a robot that has answered one of our
+        frames; at most EPOCH_ANNOUNCEMENTS_PER_PEER times a robot; a Heartbeat that went out
+        within ack_timeout_s serves instead."""
+        count = self._announced.get(peer, 0)
+        if peer in self._answered or self._heartbeat is None or count >= EPOCH_ANNOUNCEMENTS_PER_PEER:
             return
-        self.stats.epoch_announcements += 1
-        self.send_heartbeat(now, *self._heartbeat)
+        self._announced[peer] = count + 1
+        if now - self._heartbeat_s >= self.config.reliability.ack_timeout_s:
+            self.stats.epoch_announcements += 1
+            self.send_heartbeat(now, *self._heartbeat)
 
     def _send_confirm(self, dst: int, message: Confirm) -> None:
         """A Confirm always goes out under a fresh sequence number, a cached one re-sent too, so
@@ -289,6 +311,7 @@ class Endpoint:
     def _new_epoch(self) -> None:
         self.epoch = (self.epoch + 1) & MAX_EPOCH
         self._answered.clear()  # nobody knows the new epoch before our next Heartbeat
+        self._announced.clear()
         self.stats.epochs += 1
         for frame in self._pending.cancel(None):
             self.stats.delivery_failures += 1
@@ -309,6 +332,8 @@ class Endpoint:
             return True
         self.stats.duplicates += 1
         if cached_confirm is not None:  # Verdict.DUPLICATE_ANSWERED: our Confirm was lost
+            if self.config.announce_epoch_on_resend:  # or it could not open it
+                self._announce_epoch(header.src, now)
             self._send_confirm(header.src, cached_confirm)
         return False
 

@@ -15,10 +15,10 @@ class EndpointConfig:
     (0..15). heartbeat_ttl: TTL of our Heartbeats (Bluetooth Mesh's Heartbeat Publication TTL;
     None: initial_ttl): how far they reach. initial_seq: first sequence number (0..65535); a runtime that restarts an endpoint can
     draw it from its seeded generator so old seqs are not reused at once. announce_epoch_on_resend:
-    a resend to a robot that has not yet answered any of our frames goes after a repeat of our
-    latest Heartbeat (at most one per ack_timeout_s), since in an authenticated team a robot that
-    missed our Heartbeats cannot open anything we send (docs/protocol.md section 7); an
-    authenticated team's assembly turns it on."""
+    our resend to a robot that has not answered any of our frames, and a cached Confirm re-sent for
+    its resend, go after a repeat of our latest Heartbeat (bounded: docs/protocol.md section 7),
+    since in an authenticated team a robot that missed our Heartbeats cannot open anything we send;
+    an authenticated team's assembly turns it on."""
 
     reliability: ReliabilityConfig = field(default_factory=ReliabilityConfig)
     initial_ttl: int = DEFAULT_TTL
