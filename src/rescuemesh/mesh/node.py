@@ -179,8 +179,8 @@ class MeshNode:
             if ttl != view.ttl:
                 frame = with_ttl(frame, ttl)
                 self._stats.sent_short_ttl += 1
-            self._outbox.push(now, Transmission(self._seal(frame, epoch), view.src, view.dst, view.msg_type, view.seq,
-                                         ttl, False, None, None, self._key(frame, epoch)))
+            self._outbox.push(now, Transmission(self._seal(frame, epoch), view.src, view.dst, view.msg_type,
+                                                view.seq, ttl, False, None, None, self._key(frame, epoch)))
         elif view.dst == BROADCAST:
             raise ValueError("a frame longer than 20 bytes is segmented and needs a unicast destination")
         else:
@@ -362,15 +362,15 @@ class MeshNode:
                        now: float) -> None:
         epoch = self._tx_epoch.get((view.dst, view.seq), 0)
         self._outbox.push(now, Transmission(self._seal(data, epoch), view.src, view.dst, view.msg_type, view.seq,
-                                     view.ttl, False, index, total, self._key(data, epoch)))
+                                            view.ttl, False, index, total, self._key(data, epoch)))
 
     def _send_ack(self, dst: int, ref_seq: int, base: int, bitmap: int, now: float) -> None:
         ttl = self.config.initial_ttl
         seq, epoch = self.number()
         header = Header(PROTOCOL_VERSION, FrameFlags.NONE, ttl, 0, MessageType.SEGMENT_ACK, self.address, dst, seq)
         data = encode_frame(header, SegmentAck(ref_seq, base, bitmap))
-        self._outbox.push(now, Transmission(self._seal(data, epoch), self.address, dst, MessageType.SEGMENT_ACK, seq,
-                                     ttl, False, None, None, self._key(data, epoch)))
+        self._outbox.push(now, Transmission(self._seal(data, epoch), self.address, dst, MessageType.SEGMENT_ACK,
+                                            seq, ttl, False, None, None, self._key(data, epoch)))
         self._stats.acks_sent += 1
 
     def _reassembly_closed(self, src: int, seq: int, complete: bool) -> None:
