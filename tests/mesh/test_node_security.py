@@ -19,18 +19,22 @@ INTRUDER = FrameSealer(derive_frame_key(team_key_from_seed(2)))  # a key, but no
 SECURE = ReliabilityConfig(duplicate_window_s=float("inf"), duplicate_cache_size=1024)
 
 
-def stack(address: int, epoch: int = 0, relay: bool = True) -> NetworkStack:
-    endpoint = Endpoint(address, EndpointConfig(reliability=SECURE, initial_epoch=epoch))
+def stack(address: int, epoch: int = 0, relay: bool = True, announce: bool = False) -> NetworkStack:
+    endpoint = Endpoint(address, EndpointConfig(reliability=SECURE, initial_epoch=epoch,
+                                                announce_epoch_on_resend=announce))
     # no relay pacing: this harness pumps at one instant (pacing: test_suppression.py)
     return NetworkStack(endpoint, MeshNode(address, MeshConfig(relay=relay, relay_pace_s=0.0), TEAM))
 
 
 class Air:
-    """Who hears whom (`links`), a fake clock, and a log of every frame put on the air."""
+    """Who hears whom (`links`), what is lost (`lose(sender, receiver, data)` True), a fake clock, and
+    a log of every frame put on the air."""
 
-    def __init__(self, stacks: list[NetworkStack], links: set[frozenset[int]] | None = None) -> None:
+    def __init__(self, stacks: list[NetworkStack], links: set[frozenset[int]] | None = None,
+                 lose=None) -> None:
         self.stacks = {s.address: s for s in stacks}
         self.links = links
+        self.lose = lose
         self.now = 0.0
         self.heard: dict[int, list[bytes]] = {a: [] for a in self.stacks}  # what each could capture
 
@@ -55,7 +59,8 @@ class Air:
 
     def inject(self, data: bytes, sender: int | None = None) -> None:
         for address, s in self.stacks.items():
-            if address != sender and (sender is None or self.hears(sender, address)):
+            if address != sender and (sender is None or self.hears(sender, address)) \
+                    and not (self.lose is not None and self.lose(sender, address, data)):
                 self.heard[address].append(data)
                 s.receive(data, self.now)
 

@@ -8,32 +8,15 @@ the command after robot_1 had given it up and holding the next one back."""
 
 from __future__ import annotations
 
-import pytest
+from rescuemesh.protocol import (CommandReceived, ConfirmReceived, DeliveryFailed, ForwardMsg, Follow, MessageType,
+                                 Pose, ResultCode, Stop)
 
-from rescuemesh.mesh import MeshConfig, MeshNode, NetworkStack
-from rescuemesh.protocol import (CommandReceived, ConfirmReceived, DeliveryFailed, Endpoint, EndpointConfig, ForwardMsg,
-                                 Follow, MessageType, Pose, ResultCode, Stop)
-
-from .test_node_security import SECURE, TEAM, Air, events
+from .test_node_security import Air, events
+from .test_node_security import stack as secure_stack
 
 
-def stack(address: int, announce: bool = True) -> NetworkStack:
-    endpoint = Endpoint(address, EndpointConfig(reliability=SECURE, announce_epoch_on_resend=announce))
-    return NetworkStack(endpoint, MeshNode(address, MeshConfig(relay=False, relay_pace_s=0.0), TEAM))
-
-
-class LossyAir(Air):
-    """The air of test_node_security, losing what `lose(sender, receiver, data)` says."""
-
-    def __init__(self, stacks, lose) -> None:
-        super().__init__(stacks)
-        self.lose = lose
-
-    def inject(self, data: bytes, sender: int | None = None) -> None:
-        for address, s in self.stacks.items():
-            if address != sender and not self.lose(sender, address, data):
-                self.heard[address].append(data)
-                s.receive(data, self.now)
+def stack(address: int, announce: bool = True):
+    return secure_stack(address, relay=False, announce=announce)
 
 
 def heartbeat(data: bytes) -> bool:
@@ -50,7 +33,7 @@ def test_a_robot_that_missed_our_heartbeat_learns_our_epoch_before_our_resend():
             return True
         return False
 
-    air = LossyAir([a, b], lose)
+    air = Air([a, b], lose=lose)
     a.endpoint.send_heartbeat(air.now)
     b.endpoint.send_heartbeat(air.now)
     air.pump()
@@ -68,19 +51,20 @@ def test_a_robot_that_missed_our_heartbeat_learns_our_epoch_before_our_resend():
 
 def test_without_the_announcement_every_send_goes_unopened_and_the_command_is_given_up():
     a, b = stack(1, announce=False), stack(2)
-    air = LossyAir([a, b], lambda sender, receiver, data: sender == 1 and heartbeat(data))
+    air = Air([a, b], lose=lambda sender, receiver, data: sender == 1 and heartbeat(data))
     a.endpoint.send_heartbeat(air.now)
     air.pump()
     a.endpoint.send_command(2, Stop(), air.now)
     air.pump(until=1.0)
     assert b.node.stats.dropped_unknown_epoch == 3
+    assert a.endpoint.stats.epoch_announcements == 0
     assert any(isinstance(e, DeliveryFailed) for e in events(a))
 
 
 def test_a_robot_that_has_answered_us_gets_no_announcement():
     a, b = stack(1), stack(2)
     confirms_lost = {"on": False}
-    air = LossyAir([a, b], lambda sender, receiver, data: confirms_lost["on"] and sender == 2)
+    air = Air([a, b], lose=lambda sender, receiver, data: confirms_lost["on"] and sender == 2)
     for s in (a, b):
         s.endpoint.send_heartbeat(air.now)
     air.pump()
@@ -99,7 +83,7 @@ def test_a_robot_that_has_answered_us_gets_no_announcement():
 
 def test_resends_to_two_silent_robots_at_once_announce_the_epoch_once():
     a, b, c = stack(1), stack(2), stack(3)
-    air = LossyAir([a, b, c], lambda sender, receiver, data: sender == 1)  # nothing of a's arrives
+    air = Air([a, b, c], lose=lambda sender, receiver, data: sender == 1)  # nothing of a's arrives
     a.endpoint.send_heartbeat(air.now)
     air.pump()
     a.endpoint.send_command(2, Stop(), air.now)
@@ -111,7 +95,7 @@ def test_resends_to_two_silent_robots_at_once_announce_the_epoch_once():
 def test_a_segmented_frame_given_up_by_its_endpoint_is_not_delivered_later_nor_holds_the_next_back():
     a, b = stack(1), stack(2)
     deaf = {"on": False}
-    air = LossyAir([a, b], lambda sender, receiver, data: deaf["on"])
+    air = Air([a, b], lose=lambda sender, receiver, data: deaf["on"])
     for s in (a, b):
         s.endpoint.send_heartbeat(air.now)
     air.pump()
@@ -133,8 +117,8 @@ def test_a_commander_that_cannot_open_our_acks_gets_our_epoch_and_confirm_when_i
     # segment on the air again; b's node recognises a frame it has reassembled (SegmentsResent), and
     # b's endpoint repeats its Heartbeat (free of loss) and its cached Confirm
     a, b = stack(1), stack(2)
-    air = LossyAir([a, b], lambda sender, receiver, data: sender == 2 and heartbeat(data)
-                   and b.endpoint.stats.epoch_announcements == 0)
+    air = Air([a, b], lose=lambda sender, receiver, data: sender == 2 and heartbeat(data)
+              and b.endpoint.stats.epoch_announcements == 0)
     for s in (a, b):
         s.endpoint.send_heartbeat(air.now)
     air.pump()
@@ -153,7 +137,7 @@ def test_a_commander_that_cannot_open_our_acks_gets_our_epoch_and_confirm_when_i
 
 def test_announcements_for_one_robot_stop_after_three():
     a, b = stack(1), stack(2)
-    air = LossyAir([a, b], lambda sender, receiver, data: sender == 1)  # nothing of a's arrives
+    air = Air([a, b], lose=lambda sender, receiver, data: sender == 1)  # nothing of a's arrives
     a.endpoint.send_heartbeat(air.now)
     air.pump()
     for _ in range(3):

@@ -203,8 +203,6 @@ def _team_figures(seed: int) -> dict:
                              "wall_s_by_part": parts, "world_wall_s": world_s,
                              "everything_else_wall_s": round(result["wall_time_s"] - world_s, 3)}
         goal = f" (goal >= {CONVOY_RTF_GOALS[count]:g}x)" if count in CONVOY_RTF_GOALS else ""
-        if count in CONVOY_RTF_GOALS:
-            teams[str(count)]["budget"] = goal_budget(result, CONVOY_RTF_GOALS[count])
         print(f"convoy {count:2d} robots: {result['sim_time_s']:5.1f} s simulated in {result['wall_time_s']:6.2f} s -> "
               f"{result['real_time_factor']:5.1f}x real time{goal}; {per_robot_ms:5.2f} ms wall per simulated s "
               f"per robot{'' if result['success'] else ' (the run FAILED)'}")
@@ -215,6 +213,7 @@ def _team_figures(seed: int) -> dict:
                   f"mission {other - parts.get('medium', 0.0) - parts.get('robots', 0.0):.2f} s; goal: everything "
                   f"else <= the world)")
         if count in CONVOY_RTF_GOALS:
+            teams[str(count)]["budget"] = goal_budget(result, CONVOY_RTF_GOALS[count])
             _print_budget(f"convoy of {count}", teams[str(count)]["budget"])
     for count, goal in CONVOY_RTF_GOALS.items():
         teams[f"goal_real_time_factor_{count}"] = goal

@@ -187,8 +187,7 @@ class Endpoint:
         if self._seen.lookup(src, seq) is None:
             return
         self.stats.duplicates += 1
-        if self.config.announce_epoch_on_resend:
-            self._announce_epoch(src, now)
+        self._announce_epoch(src, now)
         self.repeat_report(src, seq)
 
     def awaits(self, dst: int, seq: int) -> bool:
@@ -258,8 +257,7 @@ class Endpoint:
         after max_sends sends with a DeliveryFailed event."""
         for action, frame in self._pending.expire(now):
             if action is TimeoutAction.RESEND:
-                if self.config.announce_epoch_on_resend:
-                    self._announce_epoch(frame.dst, now)
+                self._announce_epoch(frame.dst, now)
                 attempt = min(frame.sends - 1, MAX_ATTEMPT)
                 self._queue(encode_frame(replace(frame.header, attempt=attempt), frame.message))
                 self.stats.retries += 1
@@ -294,7 +292,9 @@ class Endpoint:
         of what we confirmed): our latest Heartbeat again, under a fresh number, so a robot that
         missed our Heartbeats can open what follows. Not for a robot that has answered one of our
         frames; at most EPOCH_ANNOUNCEMENTS_PER_PEER times a robot; a Heartbeat that went out
-        within ack_timeout_s serves instead."""
+        within ack_timeout_s serves instead. Only with EndpointConfig.announce_epoch_on_resend."""
+        if not self.config.announce_epoch_on_resend:
+            return
         count = self._announced.get(peer, 0)
         if peer in self._answered or self._heartbeat is None or count >= EPOCH_ANNOUNCEMENTS_PER_PEER:
             return
@@ -332,8 +332,7 @@ class Endpoint:
             return True
         self.stats.duplicates += 1
         if cached_confirm is not None:  # Verdict.DUPLICATE_ANSWERED: our Confirm was lost
-            if self.config.announce_epoch_on_resend:  # or it could not open it
-                self._announce_epoch(header.src, now)
+            self._announce_epoch(header.src, now)  # it lost our Confirm, or could not open it
             self._send_confirm(header.src, cached_confirm)
         return False
 
